@@ -572,6 +572,13 @@ def _height_columns(t: Touches, des: selfcal.SelfCalDesign, abbe: bool | None = 
     return np.column_stack(cols), tuple(names), own, [own[ref][0], own[ref][1]], tuple(float(v) for v in levels)
 
 
+#: :func:`precision_rank_tol` takes the step the log's text printed its nominal X, Y and normals to where finer than
+#: their values' (session 31, rank31): a part whose nominals all lie on whole mm, printed ``10.0000000``, is exact
+#: to 1e-7 mm, not rounded to 1 mm (before: q = 1 mm, a tolerance near 0.1, its workpiece lost). False: the values'
+#: step alone (the behaviour before).
+TEXT_STEPS = True
+
+
 def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
     """The planar design's rank tolerance at the log's precision: ``max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)``.
 
@@ -583,16 +590,25 @@ def precision_rank_tol(t: Touches, centre_m: np.ndarray) -> float:
     to, ``Touches.n_step``); a direction exact in exact coordinates (the gauge's: the part's shift, rotation and
     size, the C-axis centre) is seen through their rounding at about ``q_rel`` (:data:`RANK_QUANTUM_FACTOR`), so no
     direction at that level is counted as determined. A full-precision log (7 decimals of a mm: ``q_rel`` about
-    1e-9) keeps :data:`RANK_TOL`. Values that are round by design (every nominal on a whole um) are taken as
-    printed so: the tolerance is then the one a log printed to that step needs (the decision at most as fine as
-    the file can carry).
+    1e-9) keeps :data:`RANK_TOL`. Each step is the smaller of the values' (the fewest decimals that write them) and
+    the text's (``Touches.text_steps``, the most decimals the file printed in the column, :data:`TEXT_STEPS`):
+    values round by design (every nominal on a whole mm, printed ``10.0000000``) are exact, not rounded, and only
+    the text says how many digits were printed (session 31, rank31: before, such a part took ``q`` = 1 mm, a
+    tolerance near 0.1, and lost its workpiece). Touches not read from text (the simulator's, a log built in
+    memory) have no text step: their values say it, as before.
     """
     xy = t.pn_R[:, :2] - np.asarray(centre_m, float)[:2]
     L = float(np.max(np.abs(xy))) if t.n else 0.0
-    q_pos = decimal_quantum(t.pn_R[:, :2] / MM) * MM  # (the file's mm; metres carry the scaling's ulp)
+    ts = (t.text_steps or {}) if TEXT_STEPS else {}
+
+    def printed(q: float, cols) -> float:  # the values' step, or the text's where finer
+        return min([q] + [ts[c] for c in cols if c in ts]) if all(c in ts for c in cols) else q
+
+    q_pos = printed(decimal_quantum(t.pn_R[:, :2] / MM), ("Xn_mm", "Yn_mm")) * MM  # (the file's mm)
     # the normals' step: a component exactly 0 or +-1 is exact at any step (an axis-aligned wall), not a printed 1
     n = np.asarray(t.n_R, float)
-    q_n = max(decimal_quantum(n[~np.isin(np.abs(n), (0.0, 1.0))]), t.n_step)  # (n_step: normalised on reading)
+    q_n = max(printed(decimal_quantum(n[~np.isin(np.abs(n), (0.0, 1.0))]), ("nx", "ny", "nz")),
+              t.n_step)  # (n_step: normalised on reading, the values' step before it)
     q_rel = max(q_pos / L if L > 0 else 0.0, q_n)
     return max(RANK_TOL, RANK_QUANTUM_FACTOR * q_rel)
 

@@ -74,6 +74,60 @@ TEMP_RANGE_C = (-273.15, 1000.0)
 #: (:func:`is_number`). ``nan`` and ``inf`` are not numbers here either (refused as not finite).
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 
+#: The columns whose printed step the reader records (:attr:`ProbeLog.text_steps`; session 31, rank31): the nominal
+#: tip centres and normals, the numbers the planar design is built from (``core.baseline.precision_rank_tol``). A
+#: value round by design (``10.0000000``: 7 decimals written) is exact, not rounded: only the text says how many
+#: digits were printed. Counting costs up to 25 ns a cell (:func:`most_decimals`: one scan of each block's text for
+#: a longer run of decimals): on a 1e6-row log 0.16 s for these six columns printed to 7 decimals (2.3 % of its
+#: read), 0.11 s written by vmt (1.2 %); every numeric column would cost some 6 %.
+#: None: no column's step recorded (every decision from the values, as before).
+TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
+
+#: :func:`most_decimals` counts up to this many decimals (a step of 1e-12 mm: 1e-14 of a 100 mm design, far below
+#: any rank tolerance); a column holding more (a shortest round-trip repr, ``71.70328770000001``) reads as printed
+#: to 1e-12, and its scan stops at the first such cell instead of growing with every longer run it meets.
+TEXT_DECIMALS_MAX = 12
+
+_MORE_DECIMALS: dict = {}
+#: a number's exponent, read after its letter (the letter found by str.find: on the 1e6-row bench log, whose repr
+#: columns hold a few hundred exponents, counting took 0.22 s with a regular expression's scan for it, 0.11 s so);
+#: the mantissa read back from the letter to the cell's start
+_EXPONENT = re.compile(r"[+-]?[0-9]+")
+
+
+def most_decimals(cells) -> int | None:
+    """The most decimals written in the cells (text of numbers): ``10.0000000`` has 7, ``10`` and ``10.`` 0;
+    ``1.5e-3`` 4 (the mantissa's decimals less the exponent: the step 1e-4 it was written to, at least 0).
+    None when no cell holds a number (every one empty); at most :data:`TEXT_DECIMALS_MAX`. Cells are taken as
+    :data:`NUMBER` reads them (blanks around a cell ignored); one scan of the block's text, C-speed
+    (:data:`TEXT_STEP_COLUMNS`)."""
+    s = ",".join(cells)
+    if not s.strip(", \t"):
+        return None
+    d = 0
+    up = False
+    for letter in "eE":  # numbers with an exponent (rare) counted apart
+        e = s.find(letter)
+        while e >= 0:
+            m = _EXPONENT.match(s, e + 1)
+            x = int(m.group()) if m else 0
+            dot = s.find(".", s.rfind(",", 0, e) + 1, e)
+            d, up = max(d, (e - dot - 1 if dot >= 0 else 0) - x), up or x > 0
+            e = s.find(letter, e + 1)
+    if up:  # (a positive exponent's mantissa has more decimals than its number: left out of the scan below;
+        s = ",".join(c for c in cells if "e" not in c and "E" not in c)  # a negative one's, fewer)
+    at = 0
+    while True:  # a run of digits after a point longer than d: d grows to it (the text before it holds none)
+        if d >= TEXT_DECIMALS_MAX:
+            return TEXT_DECIMALS_MAX
+        rx = _MORE_DECIMALS.get(d + 1)
+        if rx is None:
+            rx = _MORE_DECIMALS[d + 1] = re.compile(r"\.[0-9]{%d}[0-9]*" % (d + 1))
+        m = rx.search(s, at)
+        if m is None:
+            return d
+        d, at = m.end() - m.start() - 1, m.end()
+
 
 #: Where a line of a CSV log ends: ``\r\n``, ``\r`` or ``\n``, as CSV (RFC 4180) and Python's csv
 #: reader end a record. ``str.splitlines`` also breaks at form feed, vertical tab, ``\x1c``-``\x1e``,
@@ -208,6 +262,12 @@ class ProbeLog:
         components were printed to (:data:`UNIT_STEP_MAX`); its vectors
         are stored normalised. Empty when every vector had length 1 within
         :data:`UNIT_TOL` (stored as read).
+    text_steps : dict[str, float]
+        For each column of :data:`TEXT_STEP_COLUMNS` read from text: the step
+        it was printed to, ``10^-k`` for the most decimals ``k`` written in
+        the column (``10.0000000``: 1e-7, whatever its values; ``10``: 1):
+        the precision the file declares by its digits. Empty for a log built
+        in memory (:func:`make_log`): its values alone say their step.
 
     Columns the spec defines are numeric (except ``setup``, ``target``,
     ``feature``, ``status``); a column the spec does not define is numeric
@@ -219,6 +279,7 @@ class ProbeLog:
     source: str = "<memory>"
     warnings: tuple = ()
     unit_steps: dict = field(default_factory=dict)
+    text_steps: dict = field(default_factory=dict)
 
     # ---- shape ---------------------------------------------------------
     @property
@@ -529,6 +590,9 @@ class _Columns:
         self.pools: list[dict] = [{} for _ in header]
         self.lines: list[np.ndarray] = []
         self.n = 0
+        want = TEXT_STEP_COLUMNS or ()
+        #: the most decimals written so far in each column whose step is recorded (None: no number yet)
+        self.decimals: dict[int, int | None] = {j: None for j, h in enumerate(header) if h in want}
 
     def _text(self, j: int, cells) -> list:
         pool = self.pools[j]
@@ -588,6 +652,9 @@ class _Columns:
                 v = self._numbers(j, cells, self.n, ln)
                 if v is not None:
                     self.parts[j].append(v)
+                    if j in self.decimals:
+                        d, k = self.decimals[j], most_decimals(cells)
+                        self.decimals[j] = k if d is None else d if k is None else max(d, k)
         self.lines.append(ln)
         self.n += len(rows)
 
@@ -616,6 +683,10 @@ class _Columns:
 
     def line_of_row(self) -> np.ndarray:
         return np.concatenate(self.lines) if self.lines else np.empty(0, dtype=np.int64)
+
+    def steps(self) -> dict[str, float]:
+        """The step each recorded column was printed to (:attr:`ProbeLog.text_steps`)."""
+        return {self.header[j]: 10.0 ** -d for j, d in self.decimals.items() if d is not None}
 
 
 def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError) -> None:
@@ -724,7 +795,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         if w is not None:
             warnings.append(w)
     line_of_row = cols.line_of_row()
-    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings))
+    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=cols.steps())
     log = replace(log, unit_steps=_validate(log, lines=line_of_row, warnings=warnings))
     if len(warnings) > len(log.warnings):
         log = replace(log, warnings=tuple(warnings))

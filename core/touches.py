@@ -90,6 +90,12 @@ class Touches:
         reader normalised them (:attr:`core.probelog.ProbeLog.unit_steps`,
         e.g. 1e-4 for ``0.7071``); 0.0 where they were read as written
         (``n_R``'s own digits then say their step).
+    text_steps : dict or None
+        The steps the log's text printed its nominal and normal columns to
+        (:attr:`core.probelog.ProbeLog.text_steps`: ``Xn_mm`` printed
+        ``10.0000000`` has 1e-7 whatever its values), the precision the
+        file declares; None for touches not read from text (a log built in
+        memory, the simulator's): their values' own digits say it.
     """
 
     row: np.ndarray
@@ -109,6 +115,7 @@ class Touches:
     temps_C: dict
     d_prev_R: np.ndarray | None = None
     n_step: float = 0.0
+    text_steps: dict | None = None
 
     @property
     def n(self) -> int:
@@ -201,4 +208,5 @@ def from_log(log: ProbeLog, *, include_invalid: bool = False) -> Touches:
         temps_C={c: log.col(c)[rows] for c in log.temperature_columns()},
         d_prev_R=d_prev,
         n_step=float(log.unit_steps.get("nx", 0.0)),
+        text_steps=dict(log.text_steps) or None,
     )
