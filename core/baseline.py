@@ -543,7 +543,8 @@ def abbe_raised_evidence(A0, H: np.ndarray, y: np.ndarray, setup: np.ndarray, to
     touches (rows where ``H`` is non-zero): ``c`` fitted to ``r`` by ``Hp`` on every other set-up's rows, the
     left-out set-up's raised rows predicted; ``ratio`` = their summed squared prediction error over their summed
     ``r^2`` (1 and above: the columns predict nothing across set-ups; noise alone gives about ``1 + k / m``).
-    Also ``share``: the columns' in-sample sum of squares over the raised rows' residual sum of squares, and
+    Also ``share``: the columns' in-sample sum of squares over the raised rows' residual sum of squares (it can
+    exceed 1: beyond the baseline the columns reach the other rows too), and
     ``F``: the columns' mean square against the raised rows' residual mean square beyond them. None where fewer
     than two set-ups have raised touches.
     """
