@@ -288,7 +288,8 @@ def _normal_angles(kind: str, f, p: np.ndarray, n: np.ndarray, side: str | None)
         else:
             r = p - f.point
             r = r - np.outer(r @ f.axis, f.axis)
-        s = r / np.linalg.norm(r, axis=1, keepdims=True) * (1.0 if side == "outside" else -1.0)
+        with np.errstate(invalid="ignore", divide="ignore"):   # a touch on the centre or axis: nan, refused
+            s = r / np.linalg.norm(r, axis=1, keepdims=True) * (1.0 if side == "outside" else -1.0)
     # atan2 of sine and cosine: arccos near 1 keeps only sqrt(eps), 1e-6 deg
     return np.degrees(np.arctan2(np.linalg.norm(np.cross(s, n), axis=1), np.einsum("ij,ij->i", s, n)))
 
