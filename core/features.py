@@ -15,6 +15,13 @@ wins over the nominal one a log carries), else the log's (its
 radius given is refused (:class:`NoStylusRadius`): a fit with a wrong
 radius is wrong by that radius, and nothing in the fit would show it.
 
+A fit the touches cannot tell is refused (:class:`core.exceptions.FitError`, naming the feature and the
+set-up; review31 F1): a plane whose nominal tip centres lie on one line in the surface, a cylinder whose lie
+at one height along the axis (at the log's printing step, :data:`ONE_LINE_QUANTA`), and any fit whose outward
+normal at a touch is more than :data:`NORMAL_AGREE_MAX_DEG` from the log's normal of that touch (a boss touched
+round one height is not a plane; touches from above are not a circle). The largest angle accepted is
+``FeatureReport.normal_angle_deg``.
+
 Each parameter comes with its U95 (:func:`core.fit.u95`: Student's t on the
 fit's own covariance) and the feature with its form deviation
 (:func:`core.fit.form_deviation`, peak-to-valley about the least-squares
@@ -72,6 +79,9 @@ class FeatureReport:
         ``stylus_r_mm`` column) or ``metadata`` (its ``stylus_r_mm`` line).
     log_stylus_r_mm : float or None
         The radius the log says (column or metadata), ``None`` when it says none.
+    normal_angle_deg : float
+        Largest angle, deg, between the fitted surface's outward normal at a touch and the log's normal of
+        that touch (at most :data:`NORMAL_AGREE_MAX_DEG`: a larger one is refused).
     """
 
     kind: str
@@ -86,6 +96,7 @@ class FeatureReport:
     dof: int
     stylus_r_source: str = "given"
     log_stylus_r_mm: float | None = None
+    normal_angle_deg: float = math.nan
 
 
 class NoStylusRadius(ConfigError):
@@ -109,6 +120,26 @@ class MixedRows(ConfigError):
 
 #: Values named in a refusal of mixed rows before "...": enough to recognise the log's naming.
 MIXED_SHOWN = 6
+
+#: Largest angle, deg, between the fitted surface's outward normal at a touch and the log's normal of that touch
+#: that a fit accepts (review31 F1: a wall probed along one height was fitted as the horizontal plane through the
+#: touches, its normal at 90 deg to every touch's, flatness and U95 0, exit 0; a boss probed round one height the
+#: same). The log's normals are the plan's: a part set up off its nominal place turns them by about its offset
+#: over the feature's radius (1 mm on a 4 mm pin-and-tip radius: 14 deg), so 30 deg leaves room for a real
+#: set-up and still refuses the fits that do not describe the probed surface (90 deg for those two).
+NORMAL_AGREE_MAX_DEG = 30.0
+
+#: A plan's nominal tip centres within this many of the log's printing step (``core.probelog.decimal_quantum``
+#: of the rows' nominal and measured coordinates, at most ``ONE_LINE_STEP_MAX_MM``) of one line in the surface
+#: (plane) or of one height along the axis (cylinder) probe one line: rounding to the step moves a point by at
+#: most ``sqrt(3)/2`` steps, so 2 steps is rounding, not a second direction.
+ONE_LINE_QUANTA = 2.0
+#: mm: the coarsest printing step the one-line test believes (controllers print 3 to 6 decimals of a mm). A
+#: hand-written log whose values are all whole mm reads as printed to 1 mm; without the cap its 2 mm would
+#: refuse a wall probed at two heights 1 mm apart.
+ONE_LINE_STEP_MAX_MM = 1e-3
+#: Relative floor of the one-line test (a log printed at full precision): ``FitTolerances.cond_max``'s 1e-8.
+ONE_LINE_REL = 1e-8
 
 
 def name_order(name: str) -> tuple:
@@ -196,6 +227,100 @@ def _side(p_m: np.ndarray, n: np.ndarray, centre_m: np.ndarray, axis=None) -> st
     return "outside" if np.sum(s) >= 0 else "inside"
 
 
+def _which(log: ProbeLog, rows: np.ndarray) -> str:
+    """``feature wallE, set-up C0`` of the rows (the names a refusal gives), '' when the log names neither."""
+    out = []
+    for col, noun in (("feature", "feature"), ("setup", "set-up")):
+        if log.has(col):
+            v = str(log.col(col)[rows[0]])
+            if v:
+                out.append(f"{noun} {v}")
+    return ", ".join(out)
+
+
+def _one_line_tol(printed_mm: np.ndarray, spread_mm: float) -> tuple[float, str]:
+    """The one-line tolerance, mm, of coordinates printed to the step of ``printed_mm`` (the rows' nominal and
+    measured coordinates), and how it reads; ``spread_mm`` the nominal centres' RMS spread (``ONE_LINE_REL``)."""
+    from .probelog import decimal_quantum
+
+    q = min(decimal_quantum(printed_mm), ONE_LINE_STEP_MAX_MM)
+    rel = ONE_LINE_REL * spread_mm
+    if q > 0 and ONE_LINE_QUANTA * q >= rel:
+        return ONE_LINE_QUANTA * q, f"{ONE_LINE_QUANTA:g} x the log's printing step {q:g} mm"
+    return rel, f"{ONE_LINE_REL:g} of their spread"
+
+
+def _check_spans(kind: str, pn_mm: np.ndarray, p_mm: np.ndarray, n: np.ndarray, who: str) -> None:
+    """Refuse a plane whose touches' nominal tip centres lie on one line in the surface, or a cylinder whose
+    lie at one height along the axis the normals leave (review31 F1). The plan's nominals are free of the
+    probing noise that hides the line in the measured points (the wall's 0.3 um along x against 80 mm: condition
+    number 3e5, under ``FitTolerances.cond_max``)."""
+    X = pn_mm - pn_mm.mean(axis=0)
+    spread = float(np.sqrt(np.mean(np.einsum("ij,ij->i", X, X))))
+    if not spread > 0:
+        return                                   # one point repeated: the fit's own refusal says it
+    tol, how = _one_line_tol(np.concatenate([pn_mm, p_mm]), spread)
+    if kind == "plane":
+        nm = n.mean(axis=0)
+        if np.linalg.norm(nm) > 0.5:             # the touches agree on a normal: the surface's directions
+            nm = nm / np.linalg.norm(nm)
+            Y = X - np.outer(X @ nm, nm)
+        else:                                    # they do not: the normal check below refuses it
+            return
+        sv = np.linalg.svd(Y, compute_uv=False)
+        width = float(sv[1] / np.sqrt(len(Y)))   # RMS distance from their best line within the surface
+        if width <= tol:
+            raise FitError(f"plane fit ({who}): the touches lie on one line: a plane needs two heights / two "
+                           f"directions (the nominal tip centres within {width:.3g} mm RMS of one line in the "
+                           f"surface, at most {how})")
+    elif kind == "cylinder":
+        _, sv, Vt = np.linalg.svd(n, full_matrices=False)
+        a = Vt[-1]                               # the direction the normals are most nearly perpendicular to
+        if float(np.sqrt(np.mean((n @ a) ** 2))) > math.sin(math.radians(NORMAL_AGREE_MAX_DEG)):
+            return                               # no common axis: the normal check below says so
+        h = X @ a
+        rms_h = float(np.sqrt(np.mean(h**2)))
+        if rms_h <= tol:
+            raise FitError(f"cylinder fit ({who}): the touches lie at one height along the axis: a cylinder needs "
+                           f"touches round it at two heights or more (the nominal tip centres' heights along "
+                           f"({a[0]:.3f}, {a[1]:.3f}, {a[2]:.3f}) within {rms_h:.3g} mm RMS, at most {how}); "
+                           "one height is a circle: vmt fit circle")
+
+
+def _normal_angles(kind: str, f, p: np.ndarray, n: np.ndarray, side: str | None) -> np.ndarray:
+    """Angle, deg, between the fitted surface's outward normal at each touch and the log's normal of it."""
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    if kind == "plane":
+        s = np.broadcast_to(f.normal, n.shape)
+    else:
+        if kind == "sphere":
+            r = p - f.centre
+        elif kind == "circle":
+            r = np.column_stack([p[:, :2] - f.centre, np.zeros(len(p))])
+        else:
+            r = p - f.point
+            r = r - np.outer(r @ f.axis, f.axis)
+        with np.errstate(invalid="ignore", divide="ignore"):   # a touch on the centre or axis: nan, refused
+            s = r / np.linalg.norm(r, axis=1, keepdims=True) * (1.0 if side == "outside" else -1.0)
+    # atan2 of sine and cosine: arccos near 1 keeps only sqrt(eps), 1e-6 deg
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(s, n), axis=1), np.einsum("ij,ij->i", s, n)))
+
+
+def _check_normals(kind: str, ang: np.ndarray, who: str, log: ProbeLog, rows: np.ndarray) -> None:
+    """Refuse a fit whose surface normal is more than ``NORMAL_AGREE_MAX_DEG`` from a touch's normal in the log."""
+    i = int(np.argmax(ang))
+    if not ang[i] <= NORMAL_AGREE_MAX_DEG:
+        tg = str(log.col("target")[rows[i]]) if log.has("target") else f"row {rows[i]}"
+        why = {"plane": "the touches do not face one way (a wall probed along one height, or a boss or bore round "
+                        "one height, is not a plane of them)",
+               "sphere": "the touches do not face away from (or towards) one centre",
+               "circle": "the touches do not face away from (or towards) one centre in XY",
+               "cylinder": "the touches do not face away from (or towards) one axis"}[kind]
+        raise FitError(f"{kind} fit ({who}): the fitted {kind}'s normal is at {ang[i]:.1f} deg to the log's normal "
+                       f"of touch {tg} ({int(np.sum(ang > NORMAL_AGREE_MAX_DEG))} of {len(ang)} touches beyond "
+                       f"{NORMAL_AGREE_MAX_DEG:g} deg): {why}")
+
+
 def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
                     setup: str | None = None, stylus_r_mm: float | None = None) -> FeatureReport:
     """Fit a feature to the valid touches of ``log``.
@@ -259,6 +384,9 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
                              "a fit without the right one is wrong by it")
     else:
         r_st = said
+    who = _which(log, rows) or "the touches"
+    if kind in ("plane", "cylinder"):
+        _check_spans(kind, log.nominals_mm()[rows], p * 1e3, n, who)
     n_mean = n.mean(axis=0)
     if kind == "plane":
         f = F.fit_plane(p, normal_hint=n_mean if np.linalg.norm(n_mean) > 0.5 else None)
@@ -289,7 +417,9 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
                 "side": side}
         u = _u95_named(f, {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")})
         res = f.residuals
+    ang = _normal_angles(kind, f, p, n, vals.get("side"))
+    _check_normals(kind, ang, who, log, rows)
     return FeatureReport(kind=kind, n=int(rows.size), rows=rows, values=vals, u95=u,
                          form_um=F.form_deviation(f) * 1e6, rms_um=f.rms * 1e6,
                          residuals_um=np.asarray(res) * 1e6, stylus_r_mm=r_st, dof=int(f.dof),
-                         stylus_r_source=where, log_stylus_r_mm=said)
+                         stylus_r_source=where, log_stylus_r_mm=said, normal_angle_deg=float(np.max(ang)))

@@ -5,6 +5,13 @@ from __future__ import annotations
 #: Format of the JSON ``vmt design --json`` writes.
 DESIGN_FORMAT = "vmt-design/1"
 
+#: ``--grid-mm``'s default: ``vmt identify``'s (a 22 mm step covering the targets, here turned through a full
+#: turn of C). Until session 31 the paper's fixed -110:110:22, which on a smaller part leaves nodes no target
+#: reaches: review31 F7's 100 mm square pocket (targets within 64 mm of the C axis) was refused, "no choice of 4 C
+#: angles ... identifies the workpiece", though identify's default grid (-66:66:22) designs it. The paper's cross
+#: pocket (targets within 100.4 mm) covers -110:110:22 with either: its design is unchanged.
+GRID_DEFAULT = "22"
+
 
 def register(sub) -> None:
     p = sub.add_parser("design", help="choose the C angles of a 2D self-calibration (min max workpiece U95)")
@@ -12,9 +19,9 @@ def register(sub) -> None:
     from scenarios.cli.options import GRID_HELP, add_noise_arg, option
 
     option(p, "--n-angles", dest="angles", type=int, required=True, old=("--angles",), help="number of C angles")
-    p.add_argument("--grid-mm", default="-110:110:22", metavar="STEP|x0:x1:step",
+    p.add_argument("--grid-mm", default=GRID_DEFAULT, metavar="STEP|x0:x1:step",
                    help=GRID_HELP.replace("covering the touches", "covering the targets at every C angle")
-                   + " (-110:110:22)")
+                   + f" ({GRID_DEFAULT}, as vmt identify's; the paper's cross pocket: -110:110:22)")
     p.add_argument("--step-deg", type=float, default=5.0, help="angle search grid, deg (5)")
     option(p, "--reference-deg", dest="reference", default="0,75,130,210", old=("--reference",),
            help="reference C angles to compare, comma-separated, deg ('' = none)")
@@ -40,9 +47,17 @@ def _swept(w):
     return np.stack([(c * x - s * y).ravel(), (s * x + c * y).ravel()], axis=1)
 
 
+def _reach(grid) -> str:
+    """``x -66:66 mm, y -66:66 mm, 22 mm step``: what a grid covers, as its refusal says it."""
+    g = [(v[0] * 1e3, v[-1] * 1e3, (v[1] - v[0]) * 1e3) for v in (grid.x_m, grid.y_m)]
+    return f"x {g[0][0]:g}:{g[0][1]:g} mm, y {g[1][0]:g}:{g[1][1]:g} mm, {g[0][2]:g} mm step"
+
+
 def run(args) -> int:
+    import numpy as np
+
     from core.design import optimise_angles, targets_from_log
-    from core.exceptions import ConfigError
+    from core.exceptions import ConfigError, IdentifiabilityError
     from core.probelog import read_probe_log
     from core.atomic import write_json_atomic
     from scenarios.cli.options import parse_grid
@@ -60,8 +75,13 @@ def run(args) -> int:
 
     ev = design_evaluator(w, wn, grid, u, args.measure, dask=args.dask, workers=args.workers)
     with progress_line("design: designs evaluated (at most)") as bar, about_file(args.plan):
-        r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
-                            measure=args.measure, evaluate=ev, progress=bar)
+        try:
+            r = optimise_angles(w, wn, args.angles, grid, step_deg=args.step_deg, u_probe_m=u, reference_deg=ref,
+                                measure=args.measure, evaluate=ev, progress=bar)
+        except IdentifiabilityError as e:   # the grid is the option's: say its reach, and the option
+            raise IdentifiabilityError(f"{e}; the grid {_reach(grid)} (--grid-mm {args.grid_mm}) against targets "
+                                       f"within {np.max(np.hypot(w[:, 0], w[:, 1])) * 1e3:.1f} mm of the C axis: "
+                                       "a coarser or smaller one is --grid-mm STEP or x0:x1:step") from None
     print(f"C angles {', '.join(f'{c:g}' for c in r.c_deg)} deg: max workpiece U95 {r.max_U95_m * 1e6:.3f} um"
           f" ({args.measure}, {r.evaluations} designs evaluated)")
     if r.reference_deg is not None:

@@ -71,7 +71,7 @@ def _v(x, nd=6):
 
 def run(args) -> int:
     from core.atomic import json_safe, write_json_atomic
-    from core.features import fit_log_feature
+    from core.features import NORMAL_AGREE_MAX_DEG, fit_log_feature
     from core.probelog import read_probe_log
     from scenarios.cli.guard import about_file, progress_line
 
@@ -98,12 +98,14 @@ def run(args) -> int:
     print("  U95 (Student t, %d dof): " % r.dof + ", ".join(f"{k} {u:.3g}" for k, u in r.u95.items()))
     print(f"  {FORM[r.kind]} {r.form_um:.3f} um (peak-to-valley about the least-squares {r.kind}, "
           f"probing noise included), rms {r.rms_um:.3f} um")
+    print(f"  the log's touch normals within {r.normal_angle_deg:.1f} deg of the fitted {r.kind}'s "
+          f"(refused beyond {NORMAL_AGREE_MAX_DEG:g} deg)")
     if args.json:
         tg = log.col("target")[r.rows].astype(str).tolist()
         rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
                "values": v, "u95": r.u95, "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm, "stylus_r_source": r.stylus_r_source,
-               "log_stylus_r_mm": r.log_stylus_r_mm,
+               "log_stylus_r_mm": r.log_stylus_r_mm, "normal_angle_deg": r.normal_angle_deg,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}
                            for i, t, e in zip(r.rows, tg, r.residuals_um)]}
         write_json_atomic(args.json, json_safe(rep), special=True)

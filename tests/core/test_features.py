@@ -10,12 +10,13 @@ from core.probelog import make_log
 from core.scope import check_planar_scope
 
 
-def log_of(p_mm, n, *, feature="f", setup=None, stylus_r_mm=0.0, status=None):
+def log_of(p_mm, n, *, feature="f", setup=None, stylus_r_mm=0.0, status=None, nominal=None):
     p_mm, n = np.asarray(p_mm, float), np.asarray(n, float)
+    pn = p_mm if nominal is None else np.asarray(nominal, float)
     k = len(p_mm)
     cols = {"setup": setup if setup is not None else ["s1"] * k, "target": [f"t{i}" for i in range(k)],
             "t_s": np.arange(k, dtype=float), "X_mm": p_mm[:, 0], "Y_mm": p_mm[:, 1], "Z_mm": p_mm[:, 2],
-            "Xn_mm": p_mm[:, 0], "Yn_mm": p_mm[:, 1], "Zn_mm": p_mm[:, 2],
+            "Xn_mm": pn[:, 0], "Yn_mm": pn[:, 1], "Zn_mm": pn[:, 2],
             "nx": n[:, 0], "ny": n[:, 1], "nz": n[:, 2], "feature": [feature] * k}
     if status is not None:
         cols["status"] = status
@@ -195,3 +196,122 @@ def test_setup_names_listed_as_numbers_where_they_are_numbers():
     assert e.value.spans == {"setup": ["2", "10", "C31", "C137"]}
     with pytest.raises(ConfigError, match=r"no setup 'C3' \(valid touches have: 2, 10, C31, C137\)"):
         fit_log_feature(lg, "circle", setup="C3")
+
+
+def _wall(heights, *, noise_um=0.0, seed=5, r=2.0):
+    """review31 F1's wall: x = 50 mm, normal (-1, 0, 0), touched every 10 mm of y at ``heights`` with a ``r`` mm tip;
+    the noise along the normal (x) only, nominals the plan's (printed to 6 decimals, as vmt writes)."""
+    y, z = np.meshgrid(np.arange(-40.0, 41.0, 10.0), np.asarray(heights, float))
+    k = y.size
+    pn = np.column_stack([np.full(k, 50.0 - r), y.ravel(), z.ravel()])
+    p = pn.copy()
+    p[:, 0] += np.round(noise_um * 1e-3 * np.random.default_rng(seed).standard_normal(k), 6)
+    return p, pn, np.tile([-1.0, 0, 0], (k, 1))
+
+
+def test_wall_at_two_heights_known_answer_and_one_height_refused():
+    """review31 F1: a wall probed along one height was fitted as the horizontal plane z = -7 (the radius applied
+    vertically), flatness and every U95 0, exit 0. At two heights the fit is the wall (x = 50, normal -x); at one
+    the touches lie on one line: refused, naming the feature and the set-up."""
+    from core.features import NORMAL_AGREE_MAX_DEG
+
+    p, pn, n = _wall([-5.0, -10.0])
+    r = fit_log_feature(log_of(p, n, nominal=pn, feature="wallE", setup=["C0"] * len(p), stylus_r_mm=2.0), "plane")
+    assert r.values["point_mm"][0] == pytest.approx(50.0, abs=1e-9)      # exact points: rounding only
+    assert np.allclose(r.values["normal"], [-1, 0, 0], atol=1e-12) and r.normal_angle_deg < 1e-4
+    p, pn, n = _wall([-5.0, -10.0], noise_um=0.3)                          # noise: the truth within U95
+    r = fit_log_feature(log_of(p, n, nominal=pn, stylus_r_mm=2.0), "plane")
+    assert abs(r.values["point_mm"][0] - 50.0) * 1e3 <= r.u95["offset_n_um"]
+    assert r.normal_angle_deg < 0.01 < NORMAL_AGREE_MAX_DEG
+    p, pn, n = _wall([-5.0], noise_um=0.3)
+    with pytest.raises(FitError, match=r"plane fit \(feature wallE, set-up C0\): the touches lie on one line: a plane "
+                                       r"needs two heights / two directions \(.*printing step"):
+        fit_log_feature(log_of(p, n, nominal=pn, feature="wallE", setup=["C0"] * len(p), stylus_r_mm=2.0), "plane")
+
+
+def test_one_line_test_reads_a_whole_mm_log_as_printed_to_at_most_1_um(monkeypatch):
+    """A hand-written log of whole millimetres reads as printed to 1 mm (decimal_quantum): without the cap
+    (ONE_LINE_STEP_MAX_MM, 1 um) its 2 mm tolerance refused a wall probed at heights 1 mm apart. Heights 0.5 um
+    apart (0.25 um RMS from one line, under 2 x 1 um) are one line."""
+    import core.features as cf
+
+    assert cf.ONE_LINE_STEP_MAX_MM == 1e-3 and cf.ONE_LINE_QUANTA == 2.0
+    p, pn, n = _wall([-5.0, -6.0])
+    lg = log_of(p, n, nominal=pn, stylus_r_mm=2.0)
+    r = fit_log_feature(lg, "plane")
+    assert r.values["point_mm"][0] == pytest.approx(50.0, abs=1e-9)
+    p, pn, n = _wall([-5.0, -5.0005])
+    with pytest.raises(FitError, match=r"one line.*0.00025 mm RMS"):
+        fit_log_feature(log_of(p, n, nominal=pn, stylus_r_mm=2.0), "plane")
+    monkeypatch.setattr(cf, "ONE_LINE_STEP_MAX_MM", 1.0)         # no cap: the 1 mm apart wall refused
+    with pytest.raises(FitError, match=r"one line.*0.5 mm RMS.*printing step 1 mm"):
+        fit_log_feature(lg, "plane")
+
+
+def _boss(z_levels, *, R=10.0, r=1.0, k=8):
+    a = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    rad = np.column_stack([np.cos(a), np.sin(a), np.zeros(k)])
+    p = np.vstack([(R + r) * rad + [0, 0, z] for z in z_levels])
+    return p, np.vstack([rad] * len(z_levels))
+
+
+def test_boss_round_one_height_is_a_circle_not_a_plane_nor_a_cylinder():
+    """review31 F1's boss: touched round one height, vmt fit plane gave the plane z = -6, U95 0, and fit cylinder an
+    axis with a 1.8e6 urad tilt U95. Now the plane is refused by the normals (90 deg to every touch's), the
+    cylinder as one height; the circle is the answer (known radius), and two heights make the cylinder."""
+    p, n = _boss([-5.0])
+    lg = log_of(p, n, feature="boss", setup=["S1"] * len(p), stylus_r_mm=1.0)
+    with pytest.raises(FitError, match=r"plane fit \(feature boss, set-up S1\): the fitted plane's normal is at 90.0 "
+                                       r"deg to the log's normal of touch t0 \(8 of 8 touches beyond 30 deg\)"):
+        fit_log_feature(lg, "plane")
+    with pytest.raises(FitError, match=r"cylinder fit \(feature boss, set-up S1\): the touches lie at one height "
+                                       r"along the axis.*vmt fit circle$"):
+        fit_log_feature(lg, "cylinder")
+    c = fit_log_feature(lg, "circle")
+    assert c.values["radius_mm"] == pytest.approx(10.0, abs=1e-9) and c.normal_angle_deg < 1e-9
+    p, n = _boss([-5.0, -15.0])
+    cyl = fit_log_feature(log_of(p, n, stylus_r_mm=1.0), "cylinder")
+    assert cyl.values["radius_mm"] == pytest.approx(10.0, abs=1e-9)
+    assert abs(cyl.values["axis"][2]) == pytest.approx(1.0, abs=1e-12) and cyl.normal_angle_deg < 1e-9
+
+
+@pytest.mark.parametrize("tilt_deg, refused", [(0.0, False), (20.0, False), (29.0, False), (31.0, True),
+                                                (60.0, True), (180.0, False)])
+def test_plane_normals_of_the_log_checked_at_the_stated_angle(tilt_deg, refused):
+    """A flat face z = 5 probed on a 2D grid whose log normals are turned by ``tilt_deg`` about Y: up to
+    NORMAL_AGREE_MAX_DEG (30) the fit stands and says the angle; beyond, refused. 180: the face probed from below
+    (the normal is the log's, the angle 0). At 90 the log's normals make the touches one line of the surface they
+    say (x = const): refused as one line."""
+    from core.features import NORMAL_AGREE_MAX_DEG
+
+    assert NORMAL_AGREE_MAX_DEG == 30.0
+    x, y = np.meshgrid(np.linspace(0, 100, 6), np.linspace(0, 60, 4))
+    p = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 5.0)])
+    t = np.radians(tilt_deg)
+    n = np.tile([np.sin(t), 0.0, np.cos(t)], (len(p), 1))
+    lg = log_of(p, n)
+    if refused:
+        with pytest.raises(FitError, match=rf"the fitted plane's normal is at {tilt_deg:.1f} deg .*24 of 24"):
+            fit_log_feature(lg, "plane")
+    else:
+        assert fit_log_feature(lg, "plane").normal_angle_deg == pytest.approx(tilt_deg % 180, abs=1e-9)
+    if tilt_deg == 0:
+        with pytest.raises(FitError, match=r"lie on one line"):
+            fit_log_feature(log_of(p, np.tile([1.0, 0, 0], (len(p), 1))), "plane")
+
+
+def test_circle_and_sphere_whose_normals_are_not_radial_are_refused():
+    """A face probed round a circle from above (normals +z): fit circle gave the pattern's circle less the tip
+    radius, a radius of nothing on the part. A sphere's cap whose log normals all say +z (not radial) likewise."""
+    a = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    p = np.column_stack([20 * np.cos(a), 20 * np.sin(a), np.full(12, 3.0)])
+    with pytest.raises(FitError, match=r"circle fit \(feature f, set-up s1\): the fitted circle's normal is at 90.0 "
+                                       r"deg.*one centre in XY"):
+        fit_log_feature(log_of(p, np.tile([0, 0, 1.0], (12, 1))), "circle")
+    u = np.random.default_rng(2).normal(size=(30, 3))
+    u[:, 2] = np.abs(u[:, 2]) + 0.2
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    ball = 14.0 * u
+    assert fit_log_feature(log_of(ball, u), "sphere").normal_angle_deg < 1e-9        # radial: accepted
+    with pytest.raises(FitError, match=r"sphere fit .*the fitted sphere's normal is at .* deg.*one centre"):
+        fit_log_feature(log_of(ball, np.tile([0, 0, 1.0], (30, 1))), "sphere")
