@@ -185,10 +185,23 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
         f"and the model error the residuals show), {ident['monte_carlo']['max_workpiece_u95_um']:.2f} um (Monte "
         f"Carlo of the probing noise alone, 1000 runs, with the datum);"
         f" form {ident['monte_carlo']['max_workpiece_form_u95_um']:.2f} um")
-    raw = t.dq_m[t.setup == 0]
-    say(f"error against the true workpiece: raw C=0 probing {np.sqrt(np.mean((raw - _truth_at(t, truth.g, 0)) ** 2)) * 1e6:.2f} um RMS"
-        f" -> self-calibrated {g_err * 1e6:.2f} um RMS (shift, rotation and scale removed)")
+    plain, form = _raw_error_m(t, truth, 0)
+    say(f"error against the true workpiece, with what self-calibration cannot see removed from both (the part's "
+        f"shift, rotation and scale and a common offset): raw C=0 probing {form * 1e6:.2f} um RMS -> "
+        f"self-calibrated {g_err * 1e6:.2f} um RMS (the raw C=0 touches with nothing removed: {plain * 1e6:.2f} um RMS)")
     return res, ident
+
+
+def _raw_error_m(t, truth: _Truth, setup: int) -> tuple[float, float]:
+    """The raw probing error of set-up ``setup`` against the true workpiece, m: (nothing removed: the RMS over
+    its touches; like the self-calibrated workpiece's: the touches averaged per target, then
+    :meth:`_Truth.rms_m`, which projects out the part's shift, rotation and scale and a common offset)."""
+    m = t.setup == setup
+    raw, idx = t.dq_m[m], t.target[m]
+    plain = float(np.sqrt(np.mean((raw - _truth_at(t, truth.g, setup)) ** 2)))
+    ks = list(dict.fromkeys(idx.tolist()))
+    g = np.array([raw[idx == k].mean() for k in ks])
+    return plain, truth.rms_m(g, [t.target_ids[k] for k in ks])
 
 
 def _map_cover(t, res, machine, say) -> dict | None:
