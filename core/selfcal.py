@@ -1227,10 +1227,18 @@ class SelfCalResult:
                 "p_value_tables": float(f"{ds.p_tables:.3g}"),
                 "dof_taken": ds.rank,
                 "shift": {b: {"largest": _r(v["signed"]), "ratio_to_u95": None if v["ratio_to_u95"] is None
-                              else _r(v["ratio_to_u95"], 2), "unit": v["unit"]} for b, v in bias.items()},
+                              else _r(v["ratio_to_u95"], 2), "unit": v["unit"],
+                              **({} if "worst_phase" not in v else {
+                                  "worst_phase": _r(v["worst_phase"]),
+                                  "worst_phase_ratio_to_u95": None if v["worst_ratio_to_u95"] is None
+                                  else _r(v["worst_ratio_to_u95"], 2)})} for b, v in bias.items()},
                 "shift_what": "per block, the value's change of largest magnitude (signed: the estimate minus the "
                               "estimate with the direction structure fitted alongside) and its ratio to that "
-                              "value's U95"}
+                              "value's U95: the structure's visible part, what the residuals show; the part of "
+                              "the lobe the design absorbs is not seen and adds to it, so the bias can be larger. "
+                              "worst_phase: the largest change a lobe of lobe_order and amplitude_um makes at its "
+                              "worst phase, the absorbed part included (magnitude), and its ratio to that value's "
+                              "U95; a bound only as good as amplitude_um, itself read from the residuals"}
         if res.time is not None:
             ts = res.time
             bias = direction_biases(des, ts, res.std)
@@ -1659,11 +1667,16 @@ class DirectionStructure(_ResidualStructure):
         The p-value of ``proj`` against the model-error budget's noise and table model error
         (:func:`core.uncertainty.model_error_budget`'s ``probe_p``): small when the tables cannot explain it;
         None before the budget (or without one).
+    order_gain : (n_params, 1 or 2) float or None
+        What a lobe of order ``k`` puts into the parameters per unit of its columns' coefficients
+        (``cos k phi``, ``sin k phi``; m per m, rad per m): the fit's gain on the whole lobe, the part
+        the design absorbs included (review31 F4: ``shift`` holds only what the residuals show).
     """
 
     k: int
     amplitude_m: float
     orders: tuple
+    order_gain: np.ndarray | None = None
 
 
 def _structure_f(G: np.ndarray, r: np.ndarray, dof: int, p_max: float):
@@ -1739,15 +1752,19 @@ def direction_structure(design: SelfCalDesign, est: LinearEstimator, touches: To
     Uq = U[:, keep]
     c = Vt[keep].T @ (proj / sv[keep])           # coefficients on Lall's columns (minimum norm)
     fitted = Gall @ c
-    shift = est.noise_gain(Lall) @ c
-    best, amp, best_drop = ks[0], 0.0, -1.0
+    TL = est.noise_gain(Lall)
+    shift = TL @ c
+    best, amp, best_drop, cols = ks[0], 0.0, -1.0, slice(0, 0)
+    j0 = 0
     for k, L, G in zip(ks, raw, Gs):
         ck = np.linalg.lstsq(G, r, rcond=None)[0]
         dk = float(r @ (G @ ck))
         if dk > best_drop:
             best, amp, best_drop = k, float(np.hypot(*ck) if ck.size == 2 else abs(ck[0])), dk
+            cols = slice(j0, j0 + L.shape[1])
+        j0 += L.shape[1]
     return DirectionStructure(k=int(best), amplitude_m=amp, orders=tuple(int(k) for k in ks), F=float(F), p=p,
-                              rank=q, fitted_m=fitted, shift=shift, basis=Uq, proj=proj)
+                              rank=q, fitted_m=fitted, shift=shift, basis=Uq, proj=proj, order_gain=TL[:, cols])
 
 
 #: The parameter blocks the approach-direction note reports a bias for (with their report units).
@@ -1756,8 +1773,18 @@ DIRECTION_BLOCKS = ("EC0Y", "ECY", "ECX", "EXX", "EYY", "EXY", "EYX", "G", "EXC"
 
 def direction_biases(design: SelfCalDesign, ds, std) -> dict:
     """Per parameter block: the largest shift the direction structure ``ds`` makes (``shift`` its magnitude,
-    ``signed`` with its sign, um or urad) and its ratio to that value's U95 (k = 2 ``std``; None without one)."""
+    ``signed`` with its sign, um or urad) and its ratio to that value's U95 (k = 2 ``std``; None without one).
+
+    That shift is the structure's VISIBLE part: what the residuals show. The part of a lobe the design absorbs
+    leaves no residual and adds to it, so the true bias can be larger (review31 F4: the demo's order-2 lobe,
+    re-simulated, moves EC0Y by 62.1 urad where the visible part says 40.0). With ``ds.order_gain`` (a
+    :class:`DirectionStructure`) also ``worst_phase``: the largest change of one of the block's values a lobe
+    of order ``ds.k`` and amplitude ``ds.amplitude_m`` makes at its worst phase, the absorbed part included
+    (``amplitude x |row of order_gain|``), and ``worst_ratio_to_u95`` (that value's). A bound on that order's
+    bias only as far as the amplitude found is the probe's: it is read from the residuals too (the demo: 1.24
+    um found against 1.5 injected; its ECY 108 urad against the lobe's 130)."""
     out = {}
+    gain = getattr(ds, "order_gain", None)
     for b in DIRECTION_BLOCKS:
         if b not in design.slices:
             continue
@@ -1769,20 +1796,41 @@ def direction_biases(design: SelfCalDesign, ds, std) -> dict:
         u = None if std is None else 2.0 * float(np.asarray(std)[sl][i])
         out[b] = {"shift": abs(float(sh[i])) * 1e6, "signed": float(sh[i]) * 1e6,
                   "ratio_to_u95": (abs(float(sh[i])) / u if u else None), "unit": _alias_unit(b)}
+        if gain is not None and gain.shape[1]:
+            w = ds.amplitude_m * np.linalg.norm(gain[sl], axis=1)
+            j = int(np.argmax(w))
+            uj = None if std is None else 2.0 * float(np.asarray(std)[sl][j])
+            out[b]["worst_phase"] = float(w[j]) * 1e6
+            out[b]["worst_ratio_to_u95"] = float(w[j]) / uj if uj else None
     return out
 
 
+def _big(biases: dict, ratio: str) -> list:
+    return sorted(((b, v) for b, v in biases.items() if v.get(ratio) is not None and v[ratio] >= 0.5),
+                  key=lambda kv: -kv[1][ratio])
+
+
 def direction_text(ds, biases: dict) -> str:
-    """The note on an approach-direction structure: what it is, its size, what it biases."""
-    big = sorted(((b, v) for b, v in biases.items() if v["ratio_to_u95"] is not None and v["ratio_to_u95"] >= 0.5),
-                 key=lambda kv: -kv[1]["ratio_to_u95"])
-    named = ", ".join(f"{b} by up to {v['shift']:.2f} {v['unit']} ({v['ratio_to_u95']:.1f} x its U95)" for b, v in big)
+    """The note on an approach-direction structure: what it is, its size, what its visible part shifts, and
+    what a lobe of the order and amplitude found shifts at its worst phase, the part the design absorbs
+    included (:func:`direction_biases`; review31 F4: the visible part is no upper bound)."""
+    named = ", ".join(f"{b} by {v['shift']:.2f} {v['unit']} ({v['ratio_to_u95']:.1f} x its U95)"
+                      for b, v in _big(biases, "ratio_to_u95"))
+    worst = ", ".join(f"{b} by {v['worst_phase']:.2f} {v['unit']} ({v['worst_ratio_to_u95']:.1f} x its U95)"
+                      for b, v in _big(biases, "worst_ratio_to_u95"))
+    tail = ""
+    if any("worst_phase" in v for v in biases.values()):
+        tail = ("; the part the design absorbs is not seen and adds to it: a lobe of order "
+                f"{ds.k} and ~{ds.amplitude_m * 1e6:.2f} um at its worst phase, absorbed part included, moves "
+                + (worst if worst else "every value by under half its U95")
+                + " (a bound only as good as that amplitude, itself read from the residuals)")
     return (f"residuals follow the approach direction (lobe orders {', '.join(map(str, ds.orders))} tested"
             f" together: p = {ds.p:.1e} against noise, {ds.p_tables:.1e} against noise and table model error):"
             f" a probe pre-travel lobing, mostly of order {ds.k}, ~{ds.amplitude_m * 1e6:.2f} um;"
             f" not booked as table model error (the probing sigma is the residuals' beside it), and not in the U95: "
-            + (f"it biases {named}" if named else "its shift of every value stays under half its U95")
-            + "; vmt discover names and removes it (or compensate the pre-travel)")
+            + (f"its visible part (what the residuals show) moves {named}" if named
+               else "its visible part (what the residuals show) moves every value by under half its U95")
+            + tail + "; vmt discover names and removes it (or compensate the pre-travel)")
 
 
 # ---------------------------------------------------------------------------

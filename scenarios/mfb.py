@@ -2271,6 +2271,36 @@ def bar_calibration_doc(rev: dict) -> dict:
     return doc
 
 
+#: ``x_mm`` of a bar calibration file must be the bar's 12 points of interest (0, 50, ..., 550 mm: the
+#: pitch ``sim.artefacts.MFB_PITCH_M``) within this, mm (review31 F8: another bar's x_mm was used without a
+#: word). 0.01 mm holds any rounding of a written or hand-typed position (vmt writes 150.00000000000003)
+#: and is 2,500 times below the 25 mm a bar with its holes between ours would be off.
+BAR_X_TOL_MM = 0.01
+
+
+def _check_bar_x(path, doc: dict) -> None:
+    """Refuse a calibration whose ``x_mm`` are not the bar's points of interest (:data:`BAR_X_TOL_MM`)."""
+    from core.exceptions import ConfigError
+    from sim import artefacts as A
+
+    nominal = np.arange(12) * A.MFB_PITCH_M * 1e3
+    if "x_mm" not in doc:
+        raise ConfigError(f"bar calibration {path}: x_mm missing (the 12 points of interest, "
+                          f"{nominal[0]:g}, {nominal[1]:g}, ..., {nominal[-1]:g} mm)")
+    try:
+        x = np.asarray(doc["x_mm"], float)
+    except (TypeError, ValueError):
+        x = np.zeros(0)
+    if x.shape != (12,) or not np.all(np.isfinite(x)):
+        raise ConfigError(f"bar calibration {path}: x_mm must be 12 finite numbers (mm)")
+    off = np.flatnonzero(np.abs(x - nominal) > BAR_X_TOL_MM)
+    if off.size:
+        i = int(off[0])
+        raise ConfigError(f"bar calibration {path}: x_mm[{i}] = {x[i]:g} mm is not the bar's point of interest "
+                          f"{i + 1} at {nominal[i]:g} mm (tolerance {BAR_X_TOL_MM:g} mm; the bar's points are "
+                          f"{nominal[0]:g}, {nominal[1]:g}, ..., {nominal[-1]:g} mm): a calibration of another bar")
+
+
 def read_bar_calibration(path):
     """Read a bar calibration file (:func:`bar_calibration_doc`).
 
@@ -2278,7 +2308,8 @@ def read_bar_calibration(path):
     and the simulated bar's true deviations (12, 3) m, or None when the file
     has none. A file that is missing, not JSON, of another format or with
     arrays not finite (12, 3) (u >= 0) raises :class:`core.exceptions.ConfigError`
-    naming the problem.
+    naming the problem, as does one whose ``x_mm`` are not the bar's 12
+    points of interest (:data:`BAR_X_TOL_MM`).
     """
     import json
 
@@ -2317,6 +2348,7 @@ def read_bar_calibration(path):
     E, u = arr("E_um"), arr("u_um")
     if np.any(u < 0):
         raise ConfigError(f"bar calibration {path}: u_um must be >= 0 (standard uncertainties)")
+    _check_bar_x(path, doc)
     n = doc.get("n_repeats", 0)
     U = arr("U95_um", False)
     return (BarCalibration(E, u, 2.0 * u if U is None else U, int(n) if isinstance(n, int) else 0),

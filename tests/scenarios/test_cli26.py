@@ -368,7 +368,7 @@ def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys, tmp_path):
 
     cal = tmp_path / "cal-u0.json"
     cal.write_text(_json.dumps({"format": BAR_CALIBRATION_FORMAT, "E_um": (mfb_default_deviations() * 1e6).tolist(),
-                                "u_um": [[0.0, 0.0, 0.0]] * 12}))
+                                "u_um": [[0.0, 0.0, 0.0]] * 12, "x_mm": [50.0 * i for i in range(12)]}))
     assert main(["scenario", "mfb-3axis", "--noise-um", "0", "--mc", "0", "--bar-calibration", str(cal)]) == 0
     out = capsys.readouterr().out
     assert "nan" not in out

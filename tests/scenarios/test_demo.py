@@ -72,6 +72,20 @@ def test_demo_end_to_end(tmp_path, capsys):
     # like with like: the identified EC0Y beside the injected one in identify's gauge
     assert "injected, in the same gauge (eqs 16-17" in text
     assert "EYY ripple 1.5 um, pitch 8 mm" in text  # what the code hides, in the words
+    # like with like (review31 F12): the raw C = 0 error with what self-calibration cannot see removed, as the
+    # self-calibrated one (measured 2.33 -> 0.61 um), the unremoved figure (21.69) only as such
+    m = re.search(r"with what self-calibration cannot see removed from both \(the part's shift, rotation and scale "
+                  r"and a common offset\): raw C=0 probing ([\d.]+) um RMS -> self-calibrated ([\d.]+) um RMS \(the "
+                  r"raw C=0 touches with nothing removed: ([\d.]+) um RMS\)", text)
+    assert m and float(m[2]) < float(m[1]) < float(m[3]) / 3, text
+    # what the lobing biases (review31 F4): the visible part, the worst phase at the amplitude found, and the
+    # hidden lobe's own shift through the same fit; no 'up to' (the visible part is no bound)
+    step3 = text[text.index("3. identify"):text.index("4. discover")]
+    assert "by up to" not in step3
+    m = re.search(r"its visible part \(what the residuals show\) moves EC0Y by ([\d.]+) urad .*; the part the "
+                  r"design absorbs adds to it: a lobe of order 2 and ~[\d.]+ um at its worst phase moves EC0Y by "
+                  r"([\d.]+) urad .*\n.*the hidden 2-lobe \(1\.5 um\) alone moves EC0Y by ([\d.]+) urad", step3)
+    assert m and float(m[1]) < float(m[3]) <= float(m[2]), step3     # measured 39.97 < 62.13 <= 73.27
     # the error map's U95 is not shown as if it covered (session 30: the truth outside it at 32 of 121 nodes,
     # said nowhere): the count printed, in the report and the recording alike, with why (70 of 119 measured;
     # test_demo_map_u95.py: 1 of 119 without the lobing probe, so at least 36 asked here)
@@ -172,3 +186,86 @@ def test_finding_text_of_a_magnitude_the_design_cannot_see():
     assert _finding_text(f) == "axis X, period 18.69 mm, EXX amplitude 1.47 +/- 0.09 um (U95)"
     f = {"cause": "probe_lobing", "params": {"pretravel_variation_pv_um": None}}
     assert _finding_text(f) == "pre-travel varies with the approach azimuth (its peak-to-valley not determined)"
+
+
+def test_raw_error_like_the_self_calibrated_one():
+    """Review31 F12: the demo compared 21.7 um of raw error with nothing removed to 0.61 um with the part's shift,
+    rotation, scale and a common offset removed. Known answer: raw touches that are the true form plus exactly
+    such a gauge pattern (50 um: shift, rotation, scale, offset) plus a repeat's +-e (averaged per target): the
+    like-for-like figure is the repeats' zero to rounding (1e-12 um asked, on values of ~50 um), the unremoved
+    one the pattern's own RMS; set-up 1's touches are not read."""
+    from types import SimpleNamespace
+
+    from core.design import example_cross_pocket
+    from core.selfcal import workpiece_gauge_basis
+    from scenarios.demo import _raw_error_m, _Truth
+
+    w, wn, ids = example_cross_pocket()
+    rng = np.random.default_rng(5)
+    g_true = rng.normal(0, 1e-6, len(ids))
+    B = workpiece_gauge_basis(w, wn)
+    pattern = B @ rng.normal(0, 1, B.shape[1])
+    pattern *= 50e-6 / np.abs(pattern).max()
+    n = len(ids)
+    target = np.r_[np.arange(n), np.arange(n), np.arange(n)]          # two repeats at set-up 0, one at set-up 1
+    e = np.r_[np.full(n, 0.2e-6), np.full(n, -0.2e-6), np.zeros(n)]
+    dq = np.r_[g_true + pattern, g_true + pattern, np.full(n, 1.0)] + e
+    t = SimpleNamespace(setup=np.r_[np.zeros(2 * n, int), np.ones(n, int)], dq_m=dq, target=target,
+                        target_ids=list(ids))
+    truth = _Truth({k: g for k, g in zip(ids, g_true)}, {k: p for k, p in zip(ids, w)},
+                   {k: v for k, v in zip(ids, wn)})
+    plain, form = _raw_error_m(t, truth, 0)
+    assert form < 1e-18
+    assert plain == pytest.approx(np.sqrt(np.mean(pattern ** 2) + 0.2e-6 ** 2), rel=1e-12)
+    assert plain > 10e-6
+
+
+def test_lobe_bias_figures_against_the_campaign_without_the_lobe(monkeypatch, tmp_path):
+    """Review31 F4: identify's note on the demo said the lobing 'biases EC0Y by up to 40 urad' (the
+    structure's visible part); the demo's campaign simulated again without its 2-lobe (the 3-lobe kept,
+    which the design absorbs into EXC/EYC: EC0Y as without any lobe), the same noise draws, moves EC0Y by
+    62.1 urad. Known answers, from that re-simulation:
+    - the demo's own figure for the hidden lobe (scenarios.demo._lobe_shift: the lobe through the fit's
+      linear gain) is the re-simulated difference, every parameter to 1e-9 of the largest (measured 7e-12:
+      the simulator adds the pre-travel to each touch along its normal, so the two differ by rounding);
+    - the visible part is short of it (39.97): it is no bound, and the note no longer says 'up to';
+    - the worst-phase figure at the amplitude found (73.27) holds it (the 62.1 within it); for ECY it does
+      not (108.3 against 129.7; ECC 2.84 against 3.34): the amplitude found is 1.24 um against 1.5 injected, so the note calls it a
+      bound only as good as that amplitude; with the injected amplitude it holds every block (|g . c| <=
+      |g| |c|)."""
+    import scenarios.demo as D
+    from core.selfcal import Grid, self_calibrate
+
+    class _Quiet:
+        def __call__(self, *a, **k):
+            pass
+
+    def campaign(lobing, tmp):
+        monkeypatch.setattr(D, "LOBING_M", lobing)
+        machine, probe, errs = D._machine(2026, _Quiet())
+        return D._campaign(machine, probe, 2026, tmp, _Quiet())[3]
+
+    full = D.LOBING_M
+    assert full[0][0] == 2
+    grid = Grid.regular(-0.110, 0.110, 0.022)
+    t0 = campaign(full[1:], tmp_path)
+    t = campaign(full, tmp_path)
+    res, res0 = self_calibrate(t, grid), self_calibrate(t0, grid)
+    des, s = res.design, res.design.slices
+    true = res.theta - res0.theta                                  # what the 2-lobe does, by re-simulation
+    ec0y = float(true[s["EC0Y"]][0]) * 1e6
+    assert ec0y == pytest.approx(62.1, abs=0.1)
+    lin = D._lobe_shift(t, des, grid, 2, *full[0][1:])
+    assert np.abs(true - lin).max() < 1e-9 * np.abs(lin).max()
+    rep = res.to_report()["not_covered"]["approach_direction"]
+    sh = rep["shift"]
+    assert rep["lobe_order"] == 2 and "up to" not in rep["what"] and "visible part" in rep["what"]
+    assert "the part the design absorbs is not seen and adds to it" in rep["what"]
+    assert abs(sh["EC0Y"]["largest"]) < 0.7 * ec0y                  # the visible part: 39.97, no bound
+    assert sh["EC0Y"]["worst_phase"] >= ec0y                       # 73.27: the 62.1 within it
+    ecy = np.abs(true[s["ECY"]]).max() * 1e6
+    assert sh["ECY"]["worst_phase"] < ecy                           # 108.3 < 129.7: the amplitude found is short
+    a_true = float(np.hypot(*full[0][1:])) * 1e6
+    for b, v in sh.items():
+        largest = np.abs(lin[s[b]]).max() * 1e6
+        assert v["worst_phase"] * a_true / rep["amplitude_um"] >= largest * (1 - 1e-6), b

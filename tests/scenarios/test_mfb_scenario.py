@@ -1,6 +1,7 @@
 """vmt scenario mfb-3axis: simulate -> points of interest -> 21 errors -> JSON."""
 
 import json
+import re
 
 import numpy as np
 
@@ -568,6 +569,14 @@ def _cal_doc(E_um, u_um, **extra):
     (json.dumps(_cal_doc(np.zeros((11, 3)), np.zeros((12, 3)))), "E_um must be 12 rows"),
     (json.dumps(_cal_doc(np.zeros((12, 3)), -np.ones((12, 3)))), "u_um must be >= 0"),
     (json.dumps({"format": "vmt-bar-calibration/1", "E_um": [[0, 0, 0]] * 12}), "u_um missing"),
+    # review31 F8: x_mm was never read; another bar's (25..575 mm, review31's mybar.json) was used silently
+    (json.dumps(_cal_doc(np.zeros((12, 3)), np.zeros((12, 3)))), "x_mm missing"),
+    (json.dumps(_cal_doc(np.zeros((12, 3)), np.zeros((12, 3)), x_mm=[0, 50])), "x_mm must be 12 finite"),
+    (json.dumps(_cal_doc(np.zeros((12, 3)), np.zeros((12, 3)), x_mm=list(25.0 + 50.0 * np.arange(12)))),
+     "x_mm[0] = 25 mm is not the bar's point of interest 1 at 0 mm (tolerance 0.01 mm"),
+    (json.dumps(_cal_doc(np.zeros((12, 3)), np.zeros((12, 3)), x_mm=[0, 50, 100, 150.02] + [200.0 + 50 * i for i in
+                                                                                          range(8)])),
+     "x_mm[3] = 150.02 mm is not the bar's point of interest 4 at 150 mm"),
 ])
 def test_bar_calibration_file_refused_with_its_problem(tmp_path, content, message, capsys):
     from core.exceptions import ConfigError
@@ -577,12 +586,25 @@ def test_bar_calibration_file_refused_with_its_problem(tmp_path, content, messag
     f = tmp_path / "cal.json"
     if content is not None:
         f.write_text(content)
-    with pytest.raises(ConfigError, match=message):
+    with pytest.raises(ConfigError, match=re.escape(message)):
         read_bar_calibration(f)
     # the CLI names it in one line, exit 2, before any touch is simulated
     assert main(["scenario", "mfb-3axis", "--bar-calibration", str(f)]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err
+
+
+def test_bar_calibration_x_within_tolerance_is_read(tmp_path):
+    """x_mm within BAR_X_TOL_MM (0.01 mm) of the bar's points is the bar's (a written position's rounding:
+    vmt writes 150.00000000000003); the values read are the file's."""
+    from scenarios.mfb import BAR_X_TOL_MM, read_bar_calibration
+
+    f = tmp_path / "cal.json"
+    E = np.arange(36.0).reshape(12, 3) / 10
+    x = 50.0 * np.arange(12) + 0.9 * BAR_X_TOL_MM * np.where(np.arange(12) % 2, 1, -1)
+    f.write_text(json.dumps(_cal_doc(E, np.full((12, 3), 0.1), x_mm=x.tolist())))
+    cal, true_m = read_bar_calibration(f)
+    assert np.array_equal(cal.E_m, E * 1e-6) and true_m is None
 
 
 def test_reversal_calibration_file_round_trip_and_cli(tmp_path, capsys):
