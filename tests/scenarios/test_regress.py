@@ -555,3 +555,53 @@ def test_junit_of_a_failed_run_names_the_failure():
     assert suite.get("hostname") == "ci x" and suite.get("failures") == "1" and suite.get("tests") == "5"
     f = suite.find("testcase[@name='mean seed 1']/failure")
     assert f is not None and "mean (seed 1)" in f.get("message") and "margin -" in f.text
+
+
+# --------------------------------------------------------------------------- power (review31b F4)
+def test_power_by_hand():
+    """The detection limit per value: (k + POWER_Z / 2) x U95 + GAUGE_FLOOR for a U95 rule (k_sim for a
+    simultaneous one), t + POWER_Z / 2 x U95 for a tolerance with a U95, 2 t without one; the flip ratio is
+    max 2 |injected| / limit, at the value where it is largest; a cause, a simultaneous rule without its band
+    and a non-finite truth state nothing."""
+    from scenarios.regress import POWER_Z, power
+
+    U = np.array([1.0, 0.0, 5.0])
+    est = Estimate(np.array([1.0, 0.0, -1.5]), np.array([0.5, 0.0, -2.0]), U, ("a", "b", "c"), "um", np.eye(3))
+    z2 = POWER_Z / 2
+    p = power(Rule("EXX", None, None, "um", simultaneous=True), est, 7, k_sim=1.7)
+    lim = (1.7 + z2) * U + GAUGE_FLOOR
+    assert np.allclose(p.limits, lim, rtol=0, atol=1e-15) and p.seed == 7 and p.quantity == "EXX"
+    assert p.flip_ratio == pytest.approx(2 * 0.5 / lim[0]) and p.where == "a" and not p.sign_testable
+    assert p.smallest == (pytest.approx(GAUGE_FLOOR), "b")      # a value the convention fixes: caught above the floor
+    big = est.replaced(injected=np.array([0.5, 0.0, -7.0]))
+    p = power(Rule("EXX", None, None, "um", simultaneous=True), big, 7, k_sim=1.7)
+    assert p.flip_ratio == pytest.approx(14.0 / lim[2]) and p.where == "c" and p.sign_testable
+    j = p.to_json()
+    assert j["detection_limit"] == pytest.approx(list(lim)) and j["sign_testable"] is True and j["power"] == 0.95
+    assert j["detection_limit_min_where"] == "b" and j["injected_max_abs"] == 7.0
+    p = power(Rule("EXX", 1.0, None, "um"), est, 1)
+    assert np.allclose(p.limits, (1.0 + z2) * U + GAUGE_FLOOR, rtol=0, atol=1e-15)
+    p = power(Rule("EXX", None, 0.5, "um"), est, 1)
+    assert np.allclose(p.limits, 0.5 + z2 * U, rtol=0, atol=1e-15)
+    p = power(Rule("E", None, 0.5, "um"), est.replaced(u95=None), 1)
+    assert np.allclose(p.limits, 1.0) and "every run that passed" in p.method
+    assert power(Rule("EXX", None, None, "um", simultaneous=True), est, 1) is None   # no band: check fails it
+    assert power(Rule("cause", None, None, "cause", ("x",)), Causes(("x",)), 1) is None
+    assert power(Rule("EXX", 1.0, None, "um"), None, 1) is None
+    assert power(Rule("EXX", 1.0, None, "um"), est.replaced(injected=np.array([np.nan, 0, 0])), 1) is None
+
+
+def test_the_detection_limit_is_caught_with_the_stated_probability():
+    """Truth -> noise -> check: a value whose error is normal with standard deviation U95 / 2, moved by its
+    detection limit (k + POWER_Z / 2) x U95, fails |e + d| <= k x U95 on 95 % of draws (200,000 draws:
+    binomial standard error 0.05 %, checked to 0.3 %); moved by k x U95 only (the band) on about half."""
+    from scenarios.regress import DETECTION_POWER, POWER_Z
+
+    rng = np.random.default_rng(31)
+    U, k = 2.0, 1.718
+    e = rng.normal(0.0, U / 2, 200_000)
+    d = (k + POWER_Z / 2) * U
+    assert np.mean(np.abs(e + d) > k * U) == pytest.approx(DETECTION_POWER, abs=3e-3)
+    assert np.mean(np.abs(e - d) > k * U) == pytest.approx(DETECTION_POWER, abs=3e-3)
+    assert np.mean(np.abs(e + k * U) > k * U) == pytest.approx(0.5, abs=3e-3)
+
