@@ -605,3 +605,65 @@ def test_the_detection_limit_is_caught_with_the_stated_probability():
     assert np.mean(np.abs(e - d) > k * U) == pytest.approx(DETECTION_POWER, abs=3e-3)
     assert np.mean(np.abs(e + k * U) > k * U) == pytest.approx(0.5, abs=3e-3)
 
+
+#: The quantities whose sign each shipped study cannot test on seed 1 (its power, review31b F4): a flipped sign
+#: moves no value by its detection limit. Session 31 raised the injected errors where the machine allows
+#: (the study files say which and why); before, 3-axis EAX EXY EXZ EYZ ECZ EA0Z, 5-axis EYX EAX EXY EBY ECY
+#: EYZ EAZ ECZ EC0Y, self-calibration EXX EYX EXY ECY.
+SIGN_UNTESTABLE = {"regress-mfb-3axis-vmc": set(), "regress-mfb-5axis-mikron": {"EAX", "EYZ"},
+                   "regress-selfcal-nmv3000": {"ECY"}, "regress-iso230-2-vmc-x": set()}
+
+
+@pytest.mark.parametrize("stem", sorted(SIGN_UNTESTABLE))
+def test_each_example_states_its_power(example_runs, stem):
+    """The JSON carries each checked quantity's detection limits (one per value, in its unit) and whether its sign
+    is testable; the shipped studies can test every sign but the ones named in README's regression section."""
+    rc, rep, _ = example_runs[stem]
+    seeds = rep["seeds"]
+    power = rep["power"]
+    assert len(power) == len(seeds) * len([c for c in rep["checks"] if c["seed"] == seeds[0]])
+    for p in power:
+        assert len(p["detection_limit"]) == len(p["labels"]) >= 1 and p["power"] == 0.95
+        assert min(p["detection_limit"]) == p["detection_limit_min"] > 0
+        assert p["sign_testable"] == (p["flip_ratio"] >= 1.0)
+    for sd in seeds:
+        assert {p["quantity"] for p in power if p["seed"] == sd and not p["sign_testable"]} == SIGN_UNTESTABLE[stem]
+
+
+@pytest.mark.parametrize("src, flips, caught", [
+    # review31b's mut3.toml: these three flips passed the band (exit 0) with seed 3's drawn errors
+    (MFB3, ["EXZ", "EYZ", "ECZ"], {"EXZ", "EYZ", "ECZ"}),
+    # review31b's mutsc.toml: EXX now caught; ECY's sign stays untestable, named as such, and its flip passes
+    (SELFCAL, ["EXX", "ECY"], {"EXX"}),
+    (STUDIES / "regress-mfb-5axis-mikron.toml", ["EAX", "EBY", "EYZ", "ECZ", "EC0Y"], {"EBY", "ECZ", "EC0Y"}),
+])
+def test_a_flip_is_caught_where_the_power_says_the_sign_is_testable(tmp_path, capsys, src, flips, caught):
+    """Known answer by the mutation itself: each flipped quantity fails the study exactly when the study's power
+    calls its sign testable, and the untestable ones are named in one printed line."""
+    p = _mutated(tmp_path, src, "flip_sign = " + json.dumps(flips))
+    j = tmp_path / "r.json"
+    assert main(["regress", str(p), "--json", str(j)]) == 1
+    rep = json.loads(j.read_text())
+    assert {c["quantity"] for c in rep["checks"] if not c["passed"]} == caught
+    testable = {q["quantity"] for q in rep["power"] if q["sign_testable"]}
+    assert set(flips) & testable == caught
+    out = capsys.readouterr().out
+    (line,) = [ln for ln in out.splitlines() if "sign " in ln and "testable" in ln]
+    missed = sorted(set(flips) - caught)
+    if missed:
+        assert line.startswith("seed 1: sign not testable on ") and all(f"{q} (" in line for q in missed)
+    else:
+        assert line.startswith("seed 1: sign testable on all 21 quantities")
+
+
+def test_every_flip_of_the_3axis_study_agrees_with_its_power():
+    """The 3-axis MFB study, each of its 21 quantities flipped on its own (the study's own check and band): every
+    flip fails the study, and the power calls every sign testable (with seed 3's drawn errors EXZ, EYZ and ECZ
+    passed flipped: review31b F4)."""
+    res = run_study(load_study(MFB3))
+    (seed, k_sim, n), = res.simultaneous
+    est = res.estimates[seed]
+    for r in res.study.rules:
+        flipped = Mutation(flip_sign=(r.quantity,))(res.study.identification, est)[r.quantity]
+        assert not check(r, flipped, seed, k_sim, n).passed, r.quantity
+    assert all(p.sign_testable for p in res.power) and len(res.power) == 21
