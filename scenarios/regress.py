@@ -84,7 +84,7 @@ Identifications, their quantities and ``[plan]`` keys:
 ``discover``
     the cross-pocket campaign as for ``selfcal``, written as a probe log
     and read by ``vmt discover``'s own code path
-    (:func:`scenarios.cli.discover.run_discover`). One quantity, ``cause``:
+    (:func:`scenarios.discover_run.run_discover`). One quantity, ``cause``:
     the causes its JSON report names (``findings[*].cause``, e.g.
     ``periodic_axis_error``, ``probe_lobing``), checked by ``[accept.cause]
     expected = ["periodic_axis_error"]``: the whole set, every expected
@@ -898,7 +898,7 @@ def _discover(study: Study, seed: int) -> dict:
     import tempfile
 
     from core.probelog import write_probe_log
-    from scenarios.cli.discover import run_discover
+    from scenarios.discover_run import run_discover
 
     *_, log = _cross_pocket(study, seed)
     with tempfile.TemporaryDirectory(prefix="vmt-regress-") as d:
