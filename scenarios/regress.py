@@ -111,6 +111,11 @@ passes for a seed when every element passes; the study passes when every
 injected|`` at the element where ``|identified - injected| / limit`` is
 largest (negative: failed by that much).
 
+Power (:func:`power`, :attr:`StudyResult.power`): per checked quantity and seed, the detection limit of each
+value (the smallest change of it alone that fails the check with probability :data:`DETECTION_POWER`) and
+whether the quantity's sign is testable (a flip moves some value by its limit or more); ``vmt regress`` prints
+the quantities whose sign it cannot test, the JSON (``power``) every limit (review31b F4).
+
 Mutations (``[mutate]``, and the ``hook`` argument of :func:`run_study`):
 the documented place where a change enters the identification, between
 the estimator and the comparison. ``flip_sign = [Q, ...]`` reports Q with
