@@ -84,7 +84,7 @@ Identifications, their quantities and ``[plan]`` keys:
 ``discover``
     the cross-pocket campaign as for ``selfcal``, written as a probe log
     and read by ``vmt discover``'s own code path
-    (:func:`scenarios.cli.discover.run_discover`). One quantity, ``cause``:
+    (:func:`scenarios.discover_run.run_discover`). One quantity, ``cause``:
     the causes its JSON report names (``findings[*].cause``, e.g.
     ``periodic_axis_error``, ``probe_lobing``), checked by ``[accept.cause]
     expected = ["periodic_axis_error"]``: the whole set, every expected
@@ -110,6 +110,11 @@ passes for a seed when every element passes; the study passes when every
 (quantity, seed) passes. The *margin* is ``limit - |identified -
 injected|`` at the element where ``|identified - injected| / limit`` is
 largest (negative: failed by that much).
+
+Power (:func:`power`, :attr:`StudyResult.power`): per checked quantity and seed, the detection limit of each
+value (the smallest change of it alone that fails the check with probability :data:`DETECTION_POWER`) and
+whether the quantity's sign is testable (a flip moves some value by its limit or more); ``vmt regress`` prints
+the quantities whose sign it cannot test, the JSON (``power``) every limit (review31b F4).
 
 Mutations (``[mutate]``, and the ``hook`` argument of :func:`run_study`):
 the documented place where a change enters the identification, between
@@ -171,6 +176,14 @@ JOINT_COVERAGE = 0.95
 #: Monte Carlo draws of :func:`simultaneous_k` and their fixed seed (the same k_sim for the same covariance).
 SIM_DRAWS = 100_000
 SIM_SEED = 20261202
+#: A study's power (:func:`power`): the probability with which a change of one value by its *detection limit*
+#: fails the study on a run (review31b F4: flipped, the sign of several shipped studies' terms stayed inside the
+#: band). A value's error is normal with standard deviation U95 / 2, so a change ``d`` at a value checked
+#: against ``k x U95`` is caught with probability >= DETECTION_POWER once ``d >= (k + POWER_Z / 2) x U95``
+#: (the far side's tail only adds to it): ``(1.718 + 0.822) x U95 = 2.54 x U95`` on the 3-axis MFB study.
+DETECTION_POWER = 0.95
+#: The one-sided normal quantile of :data:`DETECTION_POWER` (Phi^-1(0.95)).
+POWER_Z = 1.6448536269514722
 #: ``[accept.cause] expected = "none"``: the same as ``expected = []``, discover may name no cause (a study of
 #: a machine without a hidden effect: a finding there is a false alarm, review29c).
 NO_CAUSE = "none"
@@ -459,6 +472,23 @@ class StudyResult:
     seconds: tuple[float, ...]
     estimates: dict = field(default=None, compare=False, repr=False)
     simultaneous: tuple = ()
+    power: tuple = field(default=(), compare=False, repr=False)
+
+    def sign_untestable(self) -> list[str]:
+        """One line per seed naming the checked quantities whose sign the study cannot test (:func:`power`),
+        or saying that it tests every sign; empty without a power (a discover study)."""
+        out = []
+        for sd in dict.fromkeys(p.seed for p in self.power):
+            ps = [p for p in self.power if p.seed == sd]
+            bad = [p for p in ps if not p.sign_testable]
+            if bad:
+                out.append(f"seed {sd}: sign not testable on {len(bad)} of {len(ps)} quantities (flipped, no value "
+                           f"moves by its detection limit, {DETECTION_POWER:.0%} power): "
+                           + ", ".join(f"{p.quantity} ({p.flip_ratio:.2f} of it)" for p in bad))
+            else:
+                out.append(f"seed {sd}: sign testable on all {len(ps)} quantities (flipped, each moves a value by "
+                           f"its detection limit or more, {DETECTION_POWER:.0%} power)")
+        return out
 
     @property
     def passed(self) -> bool:
@@ -483,7 +513,8 @@ class StudyResult:
                 "simultaneous": [{"seed": sd, "k_sim": k, "values": n, "coverage": JOINT_COVERAGE,
                                   "method": f"Monte Carlo, {SIM_DRAWS} joint normal draws, seed {SIM_SEED}"}
                                  for sd, k, n in self.simultaneous],
-                "checks": [c.to_json() for c in self.checks]}
+                "checks": [c.to_json() for c in self.checks],
+                "power": [p.to_json() for p in self.power]}
 
     def table(self) -> str:
         """The printed table: quantity, seed, where, injected, identified, U95, limit, verdict."""
@@ -872,7 +903,7 @@ def _discover(study: Study, seed: int) -> dict:
     import tempfile
 
     from core.probelog import write_probe_log
-    from scenarios.cli.discover import run_discover
+    from scenarios.discover_run import run_discover
 
     *_, log = _cross_pocket(study, seed)
     with tempfile.TemporaryDirectory(prefix="vmt-regress-") as d:
@@ -928,6 +959,96 @@ def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = Non
                  float(est.injected[i]), float(est.identified[i]), u, float(lim[i]), int(dev.size))
 
 
+@dataclass(frozen=True)
+class Power:
+    """What one check of one seed can detect (:func:`power`).
+
+    Attributes
+    ----------
+    limits : (n,) float
+        Per value, the smallest change of that value alone that fails the check with probability
+        :data:`DETECTION_POWER` (``method`` says how), in ``unit``.
+    injected : (n,) float
+        The injected truth in the identification's gauge (what a sign error moves: a flip changes a value by
+        twice it).
+    flip_ratio : float
+        ``max |2 x injected| / limit`` over the values; ``sign_testable`` when >= 1: flipped, at least one
+        value moves by its detection limit or more.
+    """
+
+    seed: int
+    quantity: str
+    unit: str
+    method: str
+    labels: tuple[str, ...]
+    limits: np.ndarray
+    injected: np.ndarray
+    flip_ratio: float
+    where: str
+
+    @property
+    def sign_testable(self) -> bool:
+        return bool(self.flip_ratio >= 1.0)
+
+    @property
+    def smallest(self) -> tuple[float, str]:
+        """(the smallest detection limit, where)."""
+        i = int(np.argmin(self.limits))
+        return float(self.limits[i]), self.labels[i]
+
+    def to_json(self) -> dict:
+        lo, at = self.smallest
+        return {"seed": self.seed, "quantity": self.quantity, "unit": self.unit, "method": self.method,
+                "power": DETECTION_POWER, "detection_limit_min": lo, "detection_limit_min_where": at,
+                "detection_limit_max": float(np.max(self.limits)),
+                "injected_max_abs": float(np.max(np.abs(self.injected))),
+                "flip_ratio": float(self.flip_ratio), "flip_ratio_where": self.where,
+                "sign_testable": self.sign_testable,
+                "detection_limit": [float(v) for v in self.limits], "labels": list(self.labels)}
+
+
+def power(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = None) -> Power | None:
+    """What ``rule`` can detect on ``est`` (None for a cause, a missing quantity, or a rule without its band).
+
+    A value checked against ``k x U95`` (``k_sim`` for a simultaneous rule) has an error of standard deviation
+    U95 / 2: moved by ``d`` it fails with probability >= :data:`DETECTION_POWER` when ``d >= (k + POWER_Z / 2)
+    x U95`` (+ :data:`GAUGE_FLOOR`; a value the convention fixes, U95 0, is caught above the floor). An
+    absolute tolerance ``t`` with a U95: ``t + POWER_Z / 2 x U95``; without one (noise-free figures): ``2 t``,
+    the change that fails every run that passed. A sign error (``flip_sign``) moves each value by twice its
+    injected value in the identification's gauge: its sign is testable when at least one value moves by its
+    limit or more (``flip_ratio >= 1``); below, one value alone is caught on fewer than 95 % of runs (a lower
+    bound on the flip's power: several values near their limits add to it; review31b F4: flipped, EXZ, EYZ and
+    ECZ of the 3-axis MFB study passed the band). ISO 230-2's U95, estimated from 5 readings per direction, is
+    taken here as if known (its k_sim, the studentized maximum, is not).
+    """
+    if est is None or not isinstance(est, Estimate) or rule.unit == "cause":
+        return None
+    if rule.simultaneous and k_sim is None:  # no joint band: the check itself fails (check), nothing to state
+        return None
+    u = None if est.u95 is None else np.asarray(est.u95, float)
+    k = k_sim if rule.simultaneous else rule.k
+    half_z = POWER_Z / 2.0
+    if k is not None:
+        if u is None:
+            return None
+        lim = (k + half_z) * u + GAUGE_FLOOR
+        method = f"({k:.3f} + {half_z:.3f}) x U95: caught with probability {DETECTION_POWER:.0%}"
+    elif u is not None:
+        lim = rule.tolerance + half_z * u
+        method = (f"{rule.tolerance:g} {rule.unit} + {half_z:.3f} x U95: caught with probability "
+                  f"{DETECTION_POWER:.0%}")
+    else:
+        lim = np.full(np.shape(est.identified), 2.0 * rule.tolerance)
+        method = f"2 x {rule.tolerance:g} {rule.unit}: caught on every run that passed"
+    inj = np.asarray(est.injected, float)
+    if lim.size == 0 or not (np.all(np.isfinite(lim)) and np.all(np.isfinite(inj))):
+        return None
+    ratio = 2.0 * np.abs(inj) / lim
+    i = int(np.argmax(ratio))
+    return Power(seed, rule.quantity, rule.unit, method, tuple(est.labels), lim, inj, float(ratio[i]),
+                 est.labels[i])
+
+
 def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
     """Run every seed of ``study`` and check every rule.
 
@@ -943,7 +1064,7 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
     progress : callable, optional
         ``progress(done, total)`` once per seed.
     """
-    checks, secs, all_est, sim = [], [], {}, []
+    checks, secs, all_est, sim, powers = [], [], {}, [], []
     run = RUNNERS[study.identification]
     for j, seed in enumerate(study.seeds):
         if progress is not None:
@@ -966,9 +1087,10 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
         why = (f"no joint band: {', '.join(lacking)} {'has' if len(lacking) == 1 else 'have'} no joint covariance"
                if lacking else "")
         checks += [check(r, est.get(r.quantity), seed, k_sim, n_sim, why=why) for r in study.rules]
+        powers += [p for p in (power(r, est.get(r.quantity), seed, k_sim) for r in study.rules) if p is not None]
     if progress is not None:
         progress(len(study.seeds), len(study.seeds))
-    return StudyResult(study, tuple(checks), tuple(secs), all_est, tuple(sim))
+    return StudyResult(study, tuple(checks), tuple(secs), all_est, tuple(sim), tuple(powers))
 
 
 # --------------------------------------------------------------------------- JUnit XML

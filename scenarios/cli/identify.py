@@ -21,7 +21,7 @@ def register(sub) -> None:
                         "offset_mm); recorded in the state (estimate.identified_on) so that vmt vcmm "
                         "--machine-state can check its tool: the tables are the tool's X/Y deviation with this "
                         "probe. Omitted: recorded as unknown (null), and vmt vcmm applies the state unchecked")
-    from scenarios.cli.scenario import add_declared_ripple_args
+    from scenarios.cli.options import add_declared_ripple_args
 
     add_declared_ripple_args(
         p, "a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's pitch error: "
@@ -153,7 +153,7 @@ def _declared(args) -> dict:
     naming the option and the symbol."""
     from core import iso
     from core.exceptions import ConfigError
-    from scenarios.cli.scenario import declared_ripples
+    from scenarios.cli.options import declared_ripples
 
     out = declared_ripples(args)
     for k in out:

@@ -261,3 +261,61 @@ def settings_from_args(args):
 SETTINGS_OPTIONS = {"probe_feed_mm_min": "--feed-mm-min", "move_feed_mm_min": "--move-feed-mm-min",
                     "max_feed_mm_min": "--max-feed-mm-min", "clearance_mm": "--clearance-mm",
                     "overtravel_mm": "--overtravel-mm", "safe_z_mm": "--safe-z-mm"}
+
+
+def _ripple_symbols(angular: bool) -> tuple:
+    """The motion errors ``--declared-ripple-um-mm`` (length: positioning, straightness) or
+    ``--declared-ripple-urad-mm`` (angular) takes."""
+    from core import iso, volumetric as vol
+
+    return tuple(s for s in vol.MOTION if iso.symbol(s).angular == angular)
+
+
+def add_declared_ripple_args(p, um_help: str, urad_help: str) -> None:
+    """The two options ``--declared-ripple-um-mm`` (dest ``declared_ripple``) and
+    ``--declared-ripple-urad-mm`` (``declared_ripple_urad``) on parser ``p``, with each command's help;
+    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once (shared options live here: a command module
+    is a leaf, CONTRIBUTING.md)."""
+    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
+                   help=um_help)
+    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
+                   help=urad_help)
+
+
+def declared_ripples(args) -> dict:
+    """``--declared-ripple-um-mm`` and ``--declared-ripple-urad-mm`` (either may be absent) read together ->
+    ``{symbol: (m or rad, m)}`` (:func:`parse_declared_ripple`: a ConfigError names the option and the bad item,
+    an empty value included). ``vmt scenario`` and ``vmt identify`` read them through this one function."""
+    out = {}
+    for text, unit in ((args.declared_ripple, "um"), (args.declared_ripple_urad, "urad")):
+        if text is not None:
+            out.update(parse_declared_ripple(text, unit))
+    return out
+
+
+def parse_declared_ripple(text: str, unit: str = "um") -> dict:
+    """``EXX=0.4:10,EYY=0.2:10`` (amplitude in ``unit``, um or urad : period mm per motion error of that unit)
+    -> ``{symbol: (m or rad, m)}``, or ConfigError naming the bad item."""
+    import math
+
+    from core.exceptions import ConfigError
+
+    opt = f"--declared-ripple-{unit}-mm"
+    known = _ripple_symbols(unit == "urad")
+    out = {}
+    for item in (t.strip() for t in text.split(",")):
+        sym, _, val = item.partition("=")
+        sym = sym.strip().upper()
+        amp, _, per = val.partition(":")
+        try:
+            a, p = float(amp), float(per)
+        except ValueError:
+            a = p = math.nan
+        if sym not in known or not (math.isfinite(a) and math.isfinite(p) and a >= 0 and p > 0):
+            raise ConfigError(f"{opt}: {item!r} is not SYMBOL=AMPLITUDE_{unit.upper()}:PERIOD_MM with SYMBOL one of "
+                              f"{', '.join(known)}, amplitude >= 0, period > 0 (e.g. "
+                              f"{'EXX=0.4:10,EYY=0.2:10' if unit == 'um' else 'EBX=1:10'})")
+        if sym in out:
+            raise ConfigError(f"{opt}: {sym} declared twice")
+        out[sym] = (a * 1e-6, p * 1e-3)
+    return out

@@ -38,6 +38,8 @@ def run(args) -> int:
                                        + (["planar model"] if study.mutation.planar else [])) if study.mutation else "")
           + ")")
     print(res.table())
+    for line in res.sign_untestable():
+        print(line)
     written = []
     if args.json:
         written.append(write_json_atomic(args.json, res.to_json(), special=True))

@@ -26,6 +26,8 @@ def _mfb(args) -> int:
             spec = truth_machine(name, args.errors, "study")
         # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
+    from scenarios.cli.options import declared_ripples
+
     if declared := declared_ripples(args):
         kw["declared_ripple"] = declared
     if args.bar_calibration:
@@ -227,63 +229,6 @@ SCENARIOS = {
 }
 
 
-def _ripple_symbols(angular: bool) -> tuple:
-    """The motion errors ``--declared-ripple-um-mm`` (length: positioning, straightness) or
-    ``--declared-ripple-urad-mm`` (angular) takes."""
-    from core import iso, volumetric as vol
-
-    return tuple(s for s in vol.MOTION if iso.symbol(s).angular == angular)
-
-
-def add_declared_ripple_args(p, um_help: str, urad_help: str) -> None:
-    """The two options ``--declared-ripple-um-mm`` (dest ``declared_ripple``) and
-    ``--declared-ripple-urad-mm`` (``declared_ripple_urad``) on parser ``p``, with each command's help;
-    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once."""
-    p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
-                   help=um_help)
-    p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",
-                   help=urad_help)
-
-
-def declared_ripples(args) -> dict:
-    """``--declared-ripple-um-mm`` and ``--declared-ripple-urad-mm`` (either may be absent) read together ->
-    ``{symbol: (m or rad, m)}`` (:func:`parse_declared_ripple`: a ConfigError names the option and the bad item,
-    an empty value included). ``vmt scenario`` and ``vmt identify`` read them through this one function."""
-    out = {}
-    for text, unit in ((args.declared_ripple, "um"), (args.declared_ripple_urad, "urad")):
-        if text is not None:
-            out.update(parse_declared_ripple(text, unit))
-    return out
-
-
-def parse_declared_ripple(text: str, unit: str = "um") -> dict:
-    """``EXX=0.4:10,EYY=0.2:10`` (amplitude in ``unit``, um or urad : period mm per motion error of that unit)
-    -> ``{symbol: (m or rad, m)}``, or ConfigError naming the bad item."""
-    import math
-
-    from core.exceptions import ConfigError
-
-    opt = f"--declared-ripple-{unit}-mm"
-    known = _ripple_symbols(unit == "urad")
-    out = {}
-    for item in (t.strip() for t in text.split(",")):
-        sym, _, val = item.partition("=")
-        sym = sym.strip().upper()
-        amp, _, per = val.partition(":")
-        try:
-            a, p = float(amp), float(per)
-        except ValueError:
-            a = p = math.nan
-        if sym not in known or not (math.isfinite(a) and math.isfinite(p) and a >= 0 and p > 0):
-            raise ConfigError(f"{opt}: {item!r} is not SYMBOL=AMPLITUDE_{unit.upper()}:PERIOD_MM with SYMBOL one of "
-                              f"{', '.join(known)}, amplitude >= 0, period > 0 (e.g. "
-                              f"{'EXX=0.4:10,EYY=0.2:10' if unit == 'um' else 'EBX=1:10'})")
-        if sym in out:
-            raise ConfigError(f"{opt}: {sym} declared twice")
-        out[sym] = (a * 1e-6, p * 1e-3)
-    return out
-
-
 def register(sub) -> None:
     p = sub.add_parser("scenario", help="run a named study: simulate, identify, compare with the truth")
     p.add_argument("name", choices=sorted(SCENARIOS), help="scenario name")
@@ -311,6 +256,8 @@ def register(sub) -> None:
                    help="mfb scenarios: identify with this bar calibration (vmt-bar-calibration/1 JSON, as "
                         "'vmt scenario mfb-reversal --json FILE' writes it) instead of the declared one; a "
                         "simulated calibration's true bar is the one simulated")
+    from scenarios.cli.options import add_declared_ripple_args
+
     add_declared_ripple_args(
         p, "mfb scenarios: a screw ripple the machine holds and no MFB plan sees (period shorter than twice the "
            "bar's 50 mm pitch), per positioning or straightness error: amplitude um and period mm, e.g. "

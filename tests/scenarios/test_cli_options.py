@@ -728,10 +728,10 @@ def test_wcs_and_one_setup_are_said_plainly(tmp_path, capsys):
 def test_declared_ripple_options_are_defined_once_for_identify_and_scenario(monkeypatch):
     """``--declared-ripple-um-mm`` / ``-urad-mm`` are one definition (name, dest, metavar, default) that
     ``vmt identify`` and ``vmt scenario`` share with their own help: building the parser goes through
-    ``scenarios.cli.scenario.add_declared_ripple_args`` for both, and nothing else defines them."""
+    ``scenarios.cli.options.add_declared_ripple_args`` for both, and nothing else defines them."""
     import pathlib
 
-    import scenarios.cli.scenario as S
+    import scenarios.cli.options as S
 
     calls = []
     real = S.add_declared_ripple_args

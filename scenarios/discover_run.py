@@ -1,0 +1,176 @@
+"""``vmt discover``'s library part: read a campaign (a probe log or an ISO 230-2 positioning log), discover,
+check the result and write its JSON (and report folder). The command (:mod:`scenarios.cli.discover`) parses and
+prints around it; regression studies (:mod:`scenarios.regress`, ``identification = "discover"``) run the very
+same path. Here, not in the command module, because commands are leaves: nothing imports a command module but
+the entry point (CONTRIBUTING.md, "Where new things go"; review31d F12).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -> dict:
+    """Read, discover, check the result, write the report folder, then the JSON; return the report dict.
+
+    Nothing is written unless the result is complete: the JSON is checked
+    first (NaN or infinity in a figure the contract requires is refused),
+    the report folder comes next and the JSON last. ``null`` is allowed only
+    where the contract says "not available": the per-target workpiece
+    figures, the findings' fitted magnitudes and their U95.
+    """
+    from core.atomic import json_safe, json_text, write_text_atomic
+
+    if _is_positioning_log(log_path):
+        d = _discover_positioning(log_path, report, grid_mm)
+    else:
+        d = _discover_probe_log(log_path, grid_mm, progress)
+    rep = dict(d.to_report())
+    for k in ("workpiece", "findings"):
+        if k in rep:
+            rep[k] = json_safe(rep[k])
+    fc = workpiece_form_change(d)
+    if fc is not None:
+        rep["workpiece_form_change"] = fc
+    nd = lobes_not_determined(d)
+    if nd is not None:
+        rep["not_determined"] = nd
+    rep["log"] = str(log_path)
+    text = json_text(rep, json_out)
+    if report:
+        from scenarios.reports import discovery_report
+
+        discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
+    write_text_atomic(json_out, text, special=True)
+    return rep
+
+
+def workpiece_form_change(d) -> dict | None:
+    """The largest change of the workpiece's FORM from the baseline to the extended model, or None.
+
+    The two models' workpiece estimates are each in a gauge: a shift, a
+    rotation and a scale of the part and a common offset (with touches at
+    several heights also a tilt, twist and growth of the raised targets) are
+    not seen by self-calibration, and an effect the extended model takes (a
+    drift, an offset per set-up) can move the estimate along them without
+    changing the form at all (review 27: a drift run's per-target change of
+    -1.320 um was at most 0.040 um of form). So the change is taken after
+    removing that span (:func:`core.selfcal.workpiece_form`, the basis
+    :func:`core.selfcal.workpiece_gauge_basis` of each target's nominal point,
+    normal and height), over the targets both models report.
+    """
+    import numpy as np
+
+    from core.selfcal import target_heights, workpiece_form
+
+    bl = d.baseline
+    geo = getattr(bl, "geometry", None)
+    Gb, Ge = d.G_baseline_m, d.G_extended_m
+    if geo is None or Gb is None or Ge is None or not d.workpiece_identifiable:
+        return None
+    Gb, Ge = np.asarray(Gb, float), np.asarray(Ge, float)
+    P, N = np.asarray(geo[0], float), np.asarray(geo[1], float)
+    ids = tuple(bl.estimand_ids)
+    if not (len(Gb) == len(Ge) == len(P) == len(ids)):
+        return None
+    fz = target_heights(bl.data.touches, len(ids))   # each target's height above the common level
+    dz = None if fz is None or not np.any(fz[1] != 0) else fz[1]
+    ok = np.isfinite(Gb) & np.isfinite(Ge)
+    if ok.sum() < 2:
+        return None
+    f = workpiece_form(Ge[ok] - Gb[ok], P[ok], N[ok], None if dz is None else dz[ok])
+    raw = (Ge - Gb)[ok]
+    j = int(np.argmax(np.abs(f)))
+    kept = [ids[i] for i in np.flatnonzero(ok)]
+    return {"max_abs_um": float(abs(f[j]) * 1e6), "value_um": float(f[j] * 1e6), "target": kept[j],
+            "raw_max_abs_um": float(np.max(np.abs(raw)) * 1e6), "targets": int(ok.sum()), "heights": dz is not None,
+            "what": "extended minus baseline workpiece, its shift, rotation, scale and common offset removed"
+                    + (" (and the tilt, twist and growth of the raised targets)" if dz is not None else "")
+                    + ": the change of the form, the part the gauge does not decide"}
+
+
+def lobes_not_determined(d) -> dict | None:
+    """The probe's pre-travel lobe orders the baseline absorbs (:func:`core.selfcal.absorbed_lobes`), or None.
+
+    What the baseline takes exactly leaves no residual: no diagnosis sees it
+    and no cause can be named for it, so a ``none`` says nothing about it
+    (review 27: a three-lobe probe on a cross pocket, walls at 0/90/180/270
+    deg, read as C-axis errors while discover said ``none``). Empty orders
+    when every order of :data:`core.selfcal.LOBE_ORDERS` leaves a residual;
+    None for a baseline without approach directions (an ISO 230-2 test).
+    """
+    import numpy as np
+
+    from core.baseline import RANK_TOL
+    from core.lsq import orth_of
+    from core.selfcal import LOBE_ALIAS_SIN, LOBE_ORDERS, absorbed_lobes
+
+    bl = d.baseline
+    data = getattr(bl, "data", None)
+    phi = getattr(data, "azimuth", None)
+    if phi is None or getattr(bl, "kind", None) != "planar" or bl.A is None:
+        return None
+    qr = getattr(bl, "qr", None)
+    if qr is not None:   # the baseline's own factorisation (reflectors: formed here, the same Q as ever)
+        from core.diagnosis import qr_formed
+
+        qr = qr_formed(qr)
+    Q = orth_of(bl.A, getattr(bl, "rank_tol", None) or RANK_TOL, qr=qr)
+    got = absorbed_lobes(np.asarray(phi, float), lambda x: Q @ (Q.T @ x))
+    ks = [k for k, _ in got]
+    lim = float(np.degrees(np.arcsin(LOBE_ALIAS_SIN)))
+    what = (f"pre-travel lobes of order k = {', '.join(map(str, ks))} (approach azimuth, machine frame) are not "
+            f"determined on this design: the baseline absorbs them (principal angle below {lim:.1f} deg), so no "
+            "residual shows them and no cause's magnitude at these orders is measured: a `none` does not "
+            "exclude them (vmt identify's not_covered names the parameters they move)" if ks else
+            f"every pre-travel lobe order k = {', '.join(map(str, LOBE_ORDERS))} leaves a residual on this design")
+    return {"pretravel_lobe_orders": ks, "principal_angle_deg": [round(a, 2) for _, a in got],
+            "checked_lobe_orders": list(LOBE_ORDERS), "what": what}
+
+
+def _discover_probe_log(log_path, grid_mm, progress):
+    """The planar self-calibration baseline of a probe-log/1 campaign, then the search."""
+    from core.baseline import extra_columns
+    from core.discover import discover
+    from core.probelog import read_probe_log
+    from core.scope import check_planar_scope
+    from core.touches import from_log
+
+    log = read_probe_log(log_path)
+    check_planar_scope(log, "discover")
+    t = from_log(log)
+    chain, extra = log.meta.get("kinematic_chain"), extra_columns(log, t.row)
+    del log  # the file's columns are not the search's: 152 MiB held through it at the bench's 1e6 rows
+    # the touches handed over, not held here: the search keeps only what it reads (core.baseline.planar_data)
+    held = [t]
+    del t
+    return discover(held.pop(), grid_step_mm=grid_mm, chain=chain, progress=progress, extra=extra)
+
+
+def _is_positioning_log(path) -> bool:
+    """Whether the file's first line declares ``positioning-log/1`` (an unreadable file is left to the reader)."""
+    from core.positioning import FORMAT
+
+    try:
+        with open(path, encoding="utf-8", errors="replace") as f:
+            first = f.readline()
+    except (OSError, ValueError):
+        return False
+    return first.strip().replace(" ", "") == f"#format:{FORMAT}"
+
+
+def _discover_positioning(log_path, report, grid_mm):
+    """Discovery on an ISO 230-2 test: the standard's model (a mean per target and direction,
+    the replicates' repeatability) as the baseline, then drift, warm-up, outliers (core.baseline)."""
+    from core.baseline import positioning_from_log
+    from core.discover import discover_baseline
+    from core.exceptions import ConfigError
+    from core.positioning import read_positioning_log
+
+    if grid_mm is not None:
+        raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
+                          "and direction)")
+    if report:
+        raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
+                          "vmt iso230-2 --report draws the test)")
+    return discover_baseline(positioning_from_log(read_positioning_log(log_path)))
