@@ -3455,8 +3455,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     cv_e, held_e = _held_out(folds, y[rows], bl.groups[rows], E_all, _penalty(terms)) if terms else (cv_b, held_b)
     outliers = np.setdiff1d(all_rows, rows)
     if outliers.size:
-        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, _volumetric_outlier_events(bl, events),
-                                         outlier_seed, settings, places,
+        findings.append(_outlier_finding(bl, outliers, st0, st, ranks, events, outlier_seed, settings, places,
                                          covariate_ranks(bl.covariates, families=HISTORY_FAMILIES)))
         _doubt_beside_turned_outliers(findings, settings)
         _doubt_beside_gathered_outliers(findings, settings)
@@ -9524,11 +9523,13 @@ def _doubt_beside_noise_excess(findings: list) -> None:
             "check that would have seen a plainer explanation was blind")
 
 
-#: On the volumetric (MFB) baseline the outlier finding counts its events per placement of the bar
-#: (:func:`_volumetric_outlier_events`): outliers in one placement's measurements are one event, which cannot tell
-#: dust from the bar moving in its fixture between that placement's measurements, so the finding is ``ambiguous``;
-#: None: every row its own event (the behaviour before; a point's three components counted as three pieces of dust).
-#: The screen that removes them is unchanged (its events stay the rows). Session 31 (review31c F1, docs/discovery.md
+#: On the volumetric (MFB) baseline the outlier finding counts the placements of the bar its outliers fall in
+#: (:func:`_volumetric_hedges`, ``placements`` in its evidence): outliers all in one placement are one event, which
+#: cannot tell dust from the bar moving in its fixture between that placement's measurements, so the finding is
+#: ``ambiguous`` (the moved bar named where the placement was measured more than once). Only ever a hedge: the
+#: concentration test keeps its events (every row its own), since counted per placement its fewer events passed
+#: outliers it had found gathered (the simulator's `none` 4008: `outlier` ambiguous -> named). None: not counted
+#: (the behaviour before). The screen that removes them is unchanged. Session 31 (review31c F1, docs/discovery.md
 #: "Session 31: MFB discovery that does not confidently misname a moved or warmed bar"): a bar turned 1 um at its
 #: ends in its fixture after a placement's first measurement read `outlier` confidently on 14 of 20 campaigns.
 VOLUMETRIC_OUTLIER_EVENTS = "placement"
@@ -9541,6 +9542,12 @@ VOLUMETRIC_OUTLIER_EVENTS = "placement"
 #: (0.083 um against a materiality of 0.080 debiased); a bar that slipped 1.5 um read `thermal_drift` named beside
 #: ``time`` and ``stylus`` at p = 9e-7 (0.198 um against 0.201).
 VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT = True
+#: With :data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`, a named catalogue cause is hedged only where it explains less than
+#: this share of what a plain smooth of its own covariate explains (its ``rival_share``: the smooth holds a
+#: mechanism beyond the cause's form); the outliers always. None: every named cause. Session 31: review31c's slipped
+#: bar read `thermal_drift` at a share of 0.61 (time left at p = 9e-7); the right names the rule hedged without it
+#: (review31c's grid: 8 of 218, shares 0.81-1.00) keep their confidence.
+VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE = 0.75
 
 #: On the volumetric baseline a named ``lobing_per_stylus`` or ``thermal_drift`` whose evidence is carried by the
 #: measurements of a placement measured more than once says so: a bar that moved in its fixture between those
@@ -9574,14 +9581,6 @@ def _volumetric_implausible_unexplained(rejected: list, structure_e: dict, st) -
         {}, {}, st.sigma / UM, "unknown")
 
 
-def _volumetric_outlier_events(bl, events):
-    """The events the outlier finding counts (:data:`VOLUMETRIC_OUTLIER_EVENTS`): on a volumetric baseline the
-    placement of each row's bar; elsewhere ``events`` as given."""
-    if bl.kind != "volumetric" or VOLUMETRIC_OUTLIER_EVENTS != "placement" or getattr(bl, "data", None) is None:
-        return events
-    return np.asarray(bl.data.placement, int)
-
-
 def _moved_bar_words(bl, rows) -> str | None:
     """Words naming the measurements of placements measured more than once among ``rows`` (baseline rows), or None
     where none is: where a bar that moved in its fixture between that placement's measurements would read."""
@@ -9600,9 +9599,9 @@ def _moved_bar_words(bl, rows) -> str | None:
 def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
     """The volumetric baseline's hedges of named findings, in place (session 31, review31c F1-F3, F5).
 
-    - outliers all in one placement (one event, :data:`VOLUMETRIC_OUTLIER_EVENTS`) measured more than once: the
-      reason names the bar moved in its fixture between that placement's measurements as their rival
-      (``moved_bar``);
+    - outliers all in one placement (:data:`VOLUMETRIC_OUTLIER_EVENTS`): ``ambiguous``; where that placement was
+      measured more than once the reason names the bar moved in its fixture between its measurements as their
+      rival (``moved_bar``);
     - a named finding beside a covariate left significant though below materiality
       (:data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`): ``ambiguous``, the covariates in the reason;
     - a ``lobing_per_stylus`` or ``thermal_drift`` (:data:`VOLUMETRIC_MOVED_BAR_RIVAL`) where the plan has a
@@ -9612,8 +9611,11 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
     left = [w for w in (structure_e.get("not_counted") or ()) if w.get("reason") == "below_materiality"]
     for f in findings:
         ev = f.evidence
-        if f.cause == causes_mod.OUTLIER and VOLUMETRIC_OUTLIER_EVENTS == "placement" and ev.get("events") == 1:
-            where = _moved_bar_words(bl, np.searchsorted(bl.rows, ev["rows"]))
+        at = np.searchsorted(bl.rows, ev.get("rows") or [])
+        if f.cause == causes_mod.OUTLIER and VOLUMETRIC_OUTLIER_EVENTS == "placement" and len(at):
+            ev["placements"] = int(np.unique(np.asarray(bl.data.placement)[at]).size)
+        if f.cause == causes_mod.OUTLIER and ev.get("placements") == 1:
+            where = _moved_bar_words(bl, at)
             ev["confidence"] = "ambiguous"
             if where is not None:
                 ev["moved_bar"] = where
@@ -9621,7 +9623,7 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
                     f"the outliers are all in one placement measured more than once, {where}: dust, or the bar "
                     "moved in its fixture between that placement's measurements (out of the catalogue)")
             else:
-                pl = bl.data.placements[int(np.asarray(bl.data.placement)[np.searchsorted(bl.rows, ev["rows"][0])])]
+                pl = bl.data.placements[int(np.asarray(bl.data.placement)[at[0]])]
                 ev["confidence_reason"] = (f"the outliers are all in one placement ({pl}): one event cannot show "
                                            "whether they are dust or a mechanism of that placement")
         if VOLUMETRIC_MOVED_BAR_RIVAL and f.cause in ("lobing_per_stylus", "thermal_drift") \
@@ -9634,7 +9636,10 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
                         f"or a bar that moved in its fixture between the measurements of {where}: on this plan "
                         "those measurements differ in stylus and time from the placement's first, so a moved bar "
                         "shifts their points as a stylus of their own or a drift would")) if w)
-        if VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT and left and ev.get("confidence") == "named":
+        share = ev.get("rival_share")
+        if VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT and left and ev.get("confidence") == "named" and (
+                f.cause == causes_mod.OUTLIER or VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE is None
+                or (share is not None and share < VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE)):
             ev["confidence"] = "ambiguous"
             ev["confidence_reason"] = (
                 "beside it structure is left in " + ", ".join(
