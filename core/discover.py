@@ -9549,10 +9549,11 @@ VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT = True
 #: (review31c's grid: 8 of 218, shares 0.81-1.00) keep their confidence.
 VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE = 0.75
 
-#: On the volumetric baseline a named ``lobing_per_stylus`` or ``thermal_drift`` whose evidence is carried by the
-#: measurements of a placement measured more than once says so: a bar that moved in its fixture between those
-#: measurements shifts their points alike, as a stylus used there alone or a drift in time would
-#: (:func:`_volumetric_hedges`, ``moved_bar``). False: not said. Session 31 (review31c F5).
+#: On the volumetric baseline a ``lobing_per_stylus`` or ``thermal_drift`` finding on a plan with a placement measured
+#: more than once names those measurements (``moved_bar``), and an ambiguous one says in its reason that a bar moved
+#: in its fixture between them is its rival: a moved bar shifts a placement's later measurements alike, as a stylus
+#: used only there (VYb, VYc, VXb on the 3-axis plan) or a drift in time would (:func:`_volumetric_hedges`). Words
+#: only. False: not said. Session 31 (review31c F5).
 VOLUMETRIC_MOVED_BAR_RIVAL = True
 
 
@@ -9605,8 +9606,8 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
     - a named finding beside a covariate left significant though below materiality
       (:data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`): ``ambiguous``, the covariates in the reason;
     - a ``lobing_per_stylus`` or ``thermal_drift`` (:data:`VOLUMETRIC_MOVED_BAR_RIVAL`) where the plan has a
-      placement measured more than once with a stylus of its own or later in time: ``moved_bar`` names those
-      measurements as the rival a plan of one stylus per placement cannot tell from it.
+      placement measured more than once: ``moved_bar`` names those measurements, and an ambiguous finding's reason
+      names the bar moved between them as its rival.
     """
     left = [w for w in (structure_e.get("not_counted") or ()) if w.get("reason") == "below_materiality"]
     for f in findings:
@@ -9633,9 +9634,9 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
                 ev["moved_bar"] = where
                 if ev.get("confidence") == "ambiguous":
                     ev["confidence_reason"] = "; ".join(w for w in (ev.get("confidence_reason"), (
-                        f"or a bar that moved in its fixture between the measurements of {where}: on this plan "
-                        "those measurements differ in stylus and time from the placement's first, so a moved bar "
-                        "shifts their points as a stylus of their own or a drift would")) if w)
+                        f"or a bar that moved in its fixture between the measurements of {where}: a moved bar "
+                        "shifts a placement's later measurements alike, as a stylus used only there or a drift in "
+                        "time would")) if w)
         share = ev.get("rival_share")
         if VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT and left and ev.get("confidence") == "named" and (
                 f.cause == causes_mod.OUTLIER or VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE is None
