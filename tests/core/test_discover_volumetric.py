@@ -404,3 +404,29 @@ def test_a_per_stylus_shift_names_the_moved_bar_as_its_rival(campaign, monkeypat
     monkeypatch.setattr(D, "VOLUMETRIC_MOVED_BAR_RIVAL", False)
     f0 = _discover(campaign, slipped).to_report()["findings"][0]
     assert "moved_bar" not in f0["evidence"] and "moved in its fixture" not in f0["evidence"]["confidence_reason"]
+
+
+def test_a_warming_drift_with_immaterial_structure_beside_it_stays_named(campaign, monkeypatch):
+    """The significant-left hedge spares a catalogue cause that explains as much as a plain smooth of its own
+    covariate (core.discover.VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE, 0.75): a drift of 8 ppm (random signs, a warming
+    course tau (2 - tau)) reads `thermal_drift` confidently (rival share 0.97) beside structure left significant
+    though immaterial; with every named cause hedged (the share None) it reads ambiguous (review31c's grid: 8 right
+    names hedged so)."""
+    import core.discover as D
+
+    meas = campaign[0]
+    rng = np.random.default_rng([2, 31])
+    s = 8e-6 * rng.choice([-1.0, 1.0], 3) * rng.uniform(0.7, 1.0, 3)
+    drifted = []
+    for i, m in enumerate(meas):
+        tau = i / (len(meas) - 1)
+        f, J = 1 + s * tau * (2 - tau), np.asarray(m.J_m)
+        drifted.append(dataclasses.replace(m, O_R=(np.asarray(m.O_R) + J) * f - J, q_R=(np.asarray(m.q_R) + J) * f - J))
+    rep = _discover(campaign, drifted).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "thermal_drift" and f["evidence"]["confidence"] == "named", _said(rep)
+    assert f["evidence"]["rival_share"] >= 0.75
+    monkeypatch.setattr(D, "VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE", None)
+    f0 = _discover(campaign, drifted).to_report()["findings"][0]
+    assert f0["cause"] == "thermal_drift" and f0["evidence"]["confidence"] == "ambiguous"
+    assert "significant though below materiality" in f0["evidence"]["confidence_reason"]
