@@ -2442,6 +2442,26 @@ def bending_bar_magnitudes(info, coef, bl):
     return {"midspan_sag_um": float(1.5 * c2 + 0.625 * c4) / UM}
 
 
+#: A bar's sag must have gravity's sign: a ``bar_bending`` fitted bending upward (``midspan_sag_um`` below zero by more
+#: than its U95) is refused as implausible (:func:`bar_sag_plausible`); False: any sign within the bounds (the
+#: behaviour before). Session 31 (review31c F2, docs/discovery.md): a temperature gradient along the bar read
+#: `bar_bending` named with a sag of -1.40 +- 0.33 um (seed 347).
+BAR_SAG_GRAVITY_SIGN = True
+
+
+def bar_sag_plausible(vals, u95):
+    """bar_bending's plausibility after the fit (:data:`BAR_SAG_GRAVITY_SIGN`): None, or why the sag is no sag."""
+    sag = vals.get("midspan_sag_um")
+    if not BAR_SAG_GRAVITY_SIGN or sag is None:
+        return None
+    u = u95.get("midspan_sag_um")
+    u = 0.0 if u is None or not np.isfinite(u) else float(u)
+    if sag + u < 0:
+        return (f"the bar bends upward ({sag:.3g} +- {u:.2g} um at mid-span): a bar sags along gravity, so this "
+                "is no sag")
+    return None
+
+
 def stylus_lobing_scans(bl):
     """Lobing per stylus: each stylus of a star has its own pre-travel pattern.
 
@@ -2635,7 +2655,7 @@ REGISTRY = (
     Cause("thermal_drift", ("volumetric",), "machine", vol_drift_scans, vol_drift_magnitudes,
           {"X_scale_change_ppm": (-500, 500), "Y_scale_change_ppm": (-500, 500), "Z_scale_change_ppm": (-500, 500)}),
     Cause("bar_bending", ("volumetric",), "artefact", bending_bar_scans, bending_bar_magnitudes,
-          {"midspan_sag_um": (-50, 50)}),
+          {"midspan_sag_um": (-50, 50)}, plausible=bar_sag_plausible),
     Cause("lobing_per_stylus", ("volumetric",), "probe", stylus_lobing_scans, stylus_lobing_magnitudes,
           {"pretravel_pv_um[*]": (0, 50), "point_shift_rms_um": (0, 50)}),
     Cause("thermal_drift", ("positioning",), "machine", pos_drift_scans, pos_drift_magnitudes,

@@ -3480,6 +3480,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         _doubt_outliers_under_refused_bump(findings, outliers, refused_bumps)
     if OUTLIERS_NOT_GROSS_HEDGED and outliers.size:
         _doubt_outliers_not_gross(findings, st.sigma / UM)
+    if bl.kind == "volumetric":
+        _volumetric_hedges(bl, findings, structure_e)
+        if VOLUMETRIC_IMPLAUSIBLE_UNEXPLAINED and not findings:
+            made = _volumetric_implausible_unexplained(rejected, structure_e, st)
+            if made is not None:
+                findings.append(made)
     tick()
     # outliers the report does not call dust with confidence (one event, or a pattern beside them): whether
     # their touches are dust or the part's own state is the removal's assumption, and its shift of the
@@ -9515,6 +9521,132 @@ def _doubt_beside_noise_excess(findings: list) -> None:
             "beside it the scatter left is above any touch-trigger probe's noise (an unexplained noise "
             f"excess): its rival ({f.evidence['rival']}) was debiased with that noise to nothing, so the "
             "check that would have seen a plainer explanation was blind")
+
+
+#: On the volumetric (MFB) baseline the outlier finding counts the placements of the bar its outliers fall in
+#: (:func:`_volumetric_hedges`, ``placements`` in its evidence): outliers all in one placement are one event, which
+#: cannot tell dust from the bar moving in its fixture between that placement's measurements, so the finding is
+#: ``ambiguous`` (the moved bar named where the placement was measured more than once). Only ever a hedge: the
+#: concentration test keeps its events (every row its own), since counted per placement its fewer events passed
+#: outliers it had found gathered (the simulator's `none` 4008: `outlier` ambiguous -> named). None: not counted
+#: (the behaviour before). The screen that removes them is unchanged. Session 31 (review31c F1, docs/discovery.md
+#: "Session 31: MFB discovery that does not confidently misname a moved or warmed bar"): a bar turned 1 um at its
+#: ends in its fixture after a placement's first measurement read `outlier` confidently on 14 of 20 campaigns.
+VOLUMETRIC_OUTLIER_EVENTS = "placement"
+
+#: On the volumetric baseline a confidently named finding (a catalogue cause or the outliers) beside a covariate the
+#: extended model leaves significant (p below ``alpha_family``) though below materiality is made ``ambiguous``
+#: (:func:`_volumetric_hedges`): the structure left is a mechanism the name does not hold, and the noise that
+#: judged it immaterial is the residuals', which that mechanism inflates. False: the behaviour before. Session 31
+#: (review31c F2, F3): a temperature gradient along the bar read `outlier` named beside ``along_bar`` at p = 2.9e-6
+#: (0.083 um against a materiality of 0.080 debiased); a bar that slipped 1.5 um read `thermal_drift` named beside
+#: ``time`` and ``stylus`` at p = 9e-7 (0.198 um against 0.201).
+VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT = True
+#: With :data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`, a named catalogue cause is hedged only where it explains less than
+#: this share of what a plain smooth of its own covariate explains (its ``rival_share``: the smooth holds a
+#: mechanism beyond the cause's form); the outliers always. None: every named cause. Session 31: review31c's slipped
+#: bar read `thermal_drift` at a share of 0.61 (time left at p = 9e-7); the right names the rule hedged without it
+#: (review31c's grid: 8 of 218, shares 0.81-1.00) keep their confidence.
+VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE = 0.75
+
+#: On the volumetric baseline a ``lobing_per_stylus`` or ``thermal_drift`` finding on a plan with a placement measured
+#: more than once names those measurements (``moved_bar``), and an ambiguous one says in its reason that a bar moved
+#: in its fixture between them is its rival: a moved bar shifts a placement's later measurements alike, as a stylus
+#: used only there (VYb, VYc, VXb on the 3-axis plan) or a drift in time would (:func:`_volumetric_hedges`). Words
+#: only. False: not said. Session 31 (review31c F5).
+VOLUMETRIC_MOVED_BAR_RIVAL = True
+
+
+#: On the volumetric baseline a report that would read ``none`` while a catalogue cause was refused as implausible
+#: though significant (a bar "sagging" upward: :data:`core.causes.BAR_SAG_GRAVITY_SIGN`) reads ``unexplained``
+#: (:func:`_volumetric_implausible_unexplained`): the structure that cause fitted is there, only no catalogue
+#: cause's physics holds it. False: ``none`` (the refusal in ``rejected`` only). Session 31 (review31c F2).
+VOLUMETRIC_IMPLAUSIBLE_UNEXPLAINED = True
+
+
+def _volumetric_implausible_unexplained(rejected: list, structure_e: dict, st) -> Finding | None:
+    """An ``unexplained`` finding for a report left with no finding whose catalogue cause was refused as
+    implausible though significant (``rejected``' reasons starting "implausible"), or None where none was."""
+    refused = [r for r in rejected if str(r.get("reason", "")).startswith("implausible")]
+    if not refused:
+        return None
+    left = [w for w in (structure_e.get("not_counted") or ()) if w.get("p_value", 1.0) < w.get("alpha_family", 0.0)]
+    text = ("a catalogue cause fits structure here significantly, with a magnitude its physics does not allow ("
+            + "; ".join(f"{r['cause']}: {r['reason']}" for r in refused) + ")"
+            + ("" if not left else "; left in " + ", ".join(
+                f"{w['covariate']} ({fmt_p(w['p_value'])}, {w['explained_rms_um']:.3g} um)" for w in left)))
+    return Finding(causes_mod.UNEXPLAINED, _clean({
+        "text": text, "refused_implausible": [dict(r) for r in refused], "diagnosis": [dict(w) for w in left],
+        "cv_gap": False, "lack_of_fit": False, "noise_excess": False,
+        "explained_ss_um2": float(sum(w["explained_rms_um"] ** 2 for w in left[:1]) * st.dof)}),
+        {}, {}, st.sigma / UM, "unknown")
+
+
+def _moved_bar_words(bl, rows) -> str | None:
+    """Words naming the measurements of placements measured more than once among ``rows`` (baseline rows), or None
+    where none is: where a bar that moved in its fixture between that placement's measurements would read."""
+    d = bl.data
+    pl = np.asarray(d.placement)[np.asarray(rows, int)]
+    multi = [p for p in np.unique(pl) if np.unique(np.asarray(d.meas)[np.asarray(d.placement) == p]).size >= 2]
+    if not multi:
+        return None
+    parts = []
+    for p in multi:
+        ms = np.unique(np.asarray(d.meas)[np.asarray(d.placement) == p])
+        parts.append(f"{d.placements[p]} ({', '.join(d.meas_names[m] for m in ms)})")
+    return "; ".join(parts)
+
+
+def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
+    """The volumetric baseline's hedges of named findings, in place (session 31, review31c F1-F3, F5).
+
+    - outliers all in one placement (:data:`VOLUMETRIC_OUTLIER_EVENTS`): ``ambiguous``; where that placement was
+      measured more than once the reason names the bar moved in its fixture between its measurements as their
+      rival (``moved_bar``);
+    - a named finding beside a covariate left significant though below materiality
+      (:data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`): ``ambiguous``, the covariates in the reason;
+    - a ``lobing_per_stylus`` or ``thermal_drift`` (:data:`VOLUMETRIC_MOVED_BAR_RIVAL`) where the plan has a
+      placement measured more than once: ``moved_bar`` names those measurements, and an ambiguous finding's reason
+      names the bar moved between them as its rival.
+    """
+    left = [w for w in (structure_e.get("not_counted") or ()) if w.get("reason") == "below_materiality"]
+    for f in findings:
+        ev = f.evidence
+        at = np.searchsorted(bl.rows, ev.get("rows") or [])
+        if f.cause == causes_mod.OUTLIER and VOLUMETRIC_OUTLIER_EVENTS == "placement" and len(at):
+            ev["placements"] = int(np.unique(np.asarray(bl.data.placement)[at]).size)
+        if f.cause == causes_mod.OUTLIER and ev.get("placements") == 1:
+            where = _moved_bar_words(bl, at)
+            ev["confidence"] = "ambiguous"
+            if where is not None:
+                ev["moved_bar"] = where
+                ev["confidence_reason"] = (
+                    f"the outliers are all in one placement measured more than once, {where}: dust, or the bar "
+                    "moved in its fixture between that placement's measurements (out of the catalogue)")
+            else:
+                pl = bl.data.placements[int(np.asarray(bl.data.placement)[at[0]])]
+                ev["confidence_reason"] = (f"the outliers are all in one placement ({pl}): one event cannot show "
+                                           "whether they are dust or a mechanism of that placement")
+        if VOLUMETRIC_MOVED_BAR_RIVAL and f.cause in ("lobing_per_stylus", "thermal_drift") \
+                and ev.get("confidence") in ("named", "ambiguous"):
+            where = _moved_bar_words(bl, np.arange(len(bl.rows)))
+            if where is not None:
+                ev["moved_bar"] = where
+                if ev.get("confidence") == "ambiguous":
+                    ev["confidence_reason"] = "; ".join(w for w in (ev.get("confidence_reason"), (
+                        f"or a bar that moved in its fixture between the measurements of {where}: a moved bar "
+                        "shifts a placement's later measurements alike, as a stylus used only there or a drift in "
+                        "time would")) if w)
+        share = ev.get("rival_share")
+        if VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT and left and ev.get("confidence") == "named" and (
+                f.cause == causes_mod.OUTLIER or VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE is None
+                or (share is not None and share < VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE)):
+            ev["confidence"] = "ambiguous"
+            ev["confidence_reason"] = (
+                "beside it structure is left in " + ", ".join(
+                    f"{w['covariate']} ({fmt_p(w['p_value'])}, {w['explained_rms_um']:.3g} um)" for w in left)
+                + ", significant though below materiality: a mechanism this name does not hold, judged immaterial "
+                "against a noise it inflates")
 
 
 def _doubt_beside_gathered_outliers(findings: list, settings) -> None:

@@ -246,3 +246,187 @@ def test_a_scale_that_oscillates_between_measurements_is_structure(campaign, mon
     rep = _discover(campaign, _hvac_x_scale(campaign[0])).to_report()
     assert rep["cause"] == "unexplained", [(f["cause"], f["evidence"].get("text")) for f in rep["findings"]]
     assert rep["diagnosis"][0]["covariate"] == "along_bar_by_measurement"
+
+
+# Session 31 (review31c F1, F2, F3, F5): effects out of the catalogue that the MFB discovery must not confidently
+# misname. The effects are review31c's generator's (its mfb_disc.py), applied to this module's campaign.
+def _bar_axis_s(m):
+    """(the bar's frame in W, its axis the first column; the position along the bar scaled -1..1) of measurement
+    ``m``, as core.baseline.volumetric."""
+    sA = np.asarray(m.O_A)[:, 0]
+    return np.asarray(m.T_W_A)[:3, :3], (sA - (sA.max() + sA.min()) / 2) / (np.ptp(sA) / 2)
+
+
+def _bar_turned_after_first(meas, um):
+    """The bar turned in its fixture (yaw about its middle, ``um`` at its ends) after the first measurement of each
+    placement measured more than once: the later measurements read it turned."""
+    seen, out = {}, []
+    for m in meas:
+        k = seen.get(m.placement, 0)
+        seen[m.placement] = k + 1
+        R, s = _bar_axis_s(m)
+        u = um * 1e-6 * k * s
+        out.append(dataclasses.replace(m, O_R=np.asarray(m.O_R) + u[:, None] * R[:, 1][None, :]) if k else m)
+    return out
+
+
+def _bar_gradient(meas, um, seed):
+    """A temperature gradient along the bar changing per measurement: its expansion along the bar a quadratic in the
+    position, ``um`` at the ends relative to the middle times a factor 0.5-1 of either sign per measurement."""
+    rng, out = np.random.default_rng([seed, 31]), []
+    for m in meas:
+        R, s = _bar_axis_s(m)
+        g = rng.uniform(0.5, 1.0) * rng.choice([-1, 1])
+        u = um * 1e-6 * g * (s ** 2 - np.mean(s ** 2))
+        out.append(dataclasses.replace(m, O_R=np.asarray(m.O_R) + u[:, None] * R[:, 0][None, :]))
+    return out
+
+
+def _bar_bent(meas, um):
+    """Every bar bent by ``um`` at mid-span along gravity's part across it (positive: a sag; negative: upward)."""
+    out = []
+    for m in meas:
+        R, s = _bar_axis_s(m)
+        g = np.array([0.0, 0.0, -1.0])
+        gp = g - (g @ R[:, 0]) * R[:, 0]
+        w = um * 1e-6 * (1 - s ** 2) ** 2
+        out.append(dataclasses.replace(m, O_R=np.asarray(m.O_R) + w[:, None] * gp[None, :]))
+    return out
+
+
+def _bar_slipped_after_first(meas, um, seed):
+    """The bar translated by ``um`` (a random direction) in its fixture after the first measurement of each placement
+    measured more than once."""
+    rng, seen, out = np.random.default_rng([seed, 31]), {}, []
+    for m in meas:
+        k = seen.get(m.placement, 0)
+        seen[m.placement] = k + 1
+        if k:
+            v = rng.normal(size=3)
+            v *= um * 1e-6 * k / np.linalg.norm(v)
+            m = dataclasses.replace(m, O_R=np.asarray(m.O_R) + v[None, :])
+        out.append(m)
+    return out
+
+
+def _said(rep):
+    return [(f["cause"], f["evidence"].get("confidence"), f["evidence"].get("confidence_reason"))
+            for f in rep["findings"]]
+
+
+def test_a_bar_turned_in_its_fixture_is_no_confident_dust(campaign, monkeypatch):
+    """review31c F1: a bar turned 1 um at its ends after a placement's first measurement put three residuals beyond
+    the outlier bound, all in one placement (VY's measurements): each row was its own event, three events, and the
+    concentration test (p 0.04 on review31c's seed 342) passed them as dust, `outlier` confident (14 of 20 of its
+    campaigns; here too). Counted per placement (core.discover.VOLUMETRIC_OUTLIER_EVENTS) they are one event, which
+    cannot tell dust from the bar moving: ambiguous, the moved bar named. Fails with the constant None and
+    VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT off (named, 3 events: the concentration test's count, which stays per row)."""
+    import core.discover as D
+
+    rep = _discover(campaign, _bar_turned_after_first(campaign[0], 1.0)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
+    assert f["evidence"]["placements"] == 1 and f["evidence"]["moved_bar"].startswith("VY"), f["evidence"]
+    assert "moved in its fixture" in f["evidence"]["confidence_reason"]
+    # (here the structure left beside them, z at p = 3.8e-5, hedges them too: VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT)
+    monkeypatch.setattr(D, "VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT", False)
+    f1 = _discover(campaign, _bar_turned_after_first(campaign[0], 1.0)).to_report()["findings"][0]
+    assert f1["evidence"]["confidence"] == "ambiguous" and "moved in its fixture" in f1["evidence"]["confidence_reason"]
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_EVENTS", None)
+    f0 = _discover(campaign, _bar_turned_after_first(campaign[0], 1.0)).to_report()["findings"][0]
+    assert f0["cause"] == "outlier" and f0["evidence"]["confidence"] == "named" and f0["evidence"]["events"] == 3
+
+
+def test_a_bar_gradient_beside_outliers_is_no_confident_dust(campaign, monkeypatch):
+    """review31c F2: a temperature gradient along the bar (1.5 um at the ends, changing per measurement) leaves
+    four outliers in four placements and ``along_bar`` significant (p 5.6e-4) though below materiality (0.095 um):
+    `outlier` was confident. Beside structure left significant the outliers may be its largest residuals:
+    ambiguous (core.discover.VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT). Fails with the constant off (named)."""
+    import core.discover as D
+
+    rep = _discover(campaign, _bar_gradient(campaign[0], 1.5, 5)).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
+    assert "along_bar" in f["evidence"]["confidence_reason"] and f["evidence"]["events"] >= 2
+    monkeypatch.setattr(D, "VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT", False)
+    f0 = _discover(campaign, _bar_gradient(campaign[0], 1.5, 5)).to_report()["findings"][0]
+    assert f0["cause"] == "outlier" and f0["evidence"]["confidence"] == "named", f0["evidence"]
+
+
+def test_bar_sag_plausible_known_answers(monkeypatch):
+    """core.causes.bar_sag_plausible: a sag below zero by more than its U95 is refused; within its U95 of zero, or
+    positive, or not determined, it stands; with BAR_SAG_GRAVITY_SIGN off nothing is refused."""
+    import core.causes as C
+
+    assert C.bar_sag_plausible({"midspan_sag_um": -1.4}, {"midspan_sag_um": 0.33})
+    assert C.bar_sag_plausible({"midspan_sag_um": -0.3}, {"midspan_sag_um": 0.33}) is None
+    assert C.bar_sag_plausible({"midspan_sag_um": 2.0}, {"midspan_sag_um": 0.1}) is None
+    assert C.bar_sag_plausible({"midspan_sag_um": -1.0}, {"midspan_sag_um": None})  # (no U95: the value decides)
+    assert C.bar_sag_plausible({}, {}) is None
+    monkeypatch.setattr(C, "BAR_SAG_GRAVITY_SIGN", False)
+    assert C.bar_sag_plausible({"midspan_sag_um": -1.4}, {"midspan_sag_um": 0.33}) is None
+
+
+def test_a_bar_bending_upward_is_no_sag(campaign, monkeypatch):
+    """review31c F2: seed 347's bar gradient read `bar_bending` confident with a sag of -1.40 +- 0.33 um, the bar
+    bending upward. A bar sags along gravity (core.causes.BAR_SAG_GRAVITY_SIGN): 2 um upward here is refused as
+    implausible, and the structure it fitted reads `unexplained` (core.discover.VOLUMETRIC_IMPLAUSIBLE_UNEXPLAINED;
+    without it `none`). Fails with the sign rule off (bar_bending named, sag -1.9 um) and with the unexplained rule
+    off (none)."""
+    import core.causes as C
+    import core.discover as D
+
+    bent = _bar_bent(campaign[0], -2.0)
+    rep = _discover(campaign, bent).to_report()
+    assert rep["cause"] == "unexplained", _said(rep)
+    assert any(r["cause"] == "bar_bending" and r["reason"].startswith("implausible") for r in rep["rejected"])
+    assert "bar_bending" in rep["findings"][0]["evidence"]["text"]
+    monkeypatch.setattr(D, "VOLUMETRIC_IMPLAUSIBLE_UNEXPLAINED", False)
+    assert _discover(campaign, bent).to_report()["cause"] == "none"
+    monkeypatch.setattr(C, "BAR_SAG_GRAVITY_SIGN", False)
+    rep0 = _discover(campaign, bent).to_report()
+    assert rep0["cause"] == "bar_bending" and rep0["findings"][0]["params"]["midspan_sag_um"] < 0, _said(rep0)
+
+
+def test_a_per_stylus_shift_names_the_moved_bar_as_its_rival(campaign, monkeypatch):
+    """review31c F5: on the 3-axis plan the later measurements of VY and VX each use a stylus no other measurement
+    uses, so a bar that slipped after a placement's first measurement is exactly a shift per stylus:
+    `lobing_per_stylus` ambiguous with no rival named. The finding names the measurements a moved bar would
+    shift (``moved_bar``, core.discover.VOLUMETRIC_MOVED_BAR_RIVAL). Fails with the constant off."""
+    import core.discover as D
+
+    slipped = _bar_slipped_after_first(campaign[0], 1.5, 1)
+    rep = _discover(campaign, slipped).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "lobing_per_stylus" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
+    assert "VY (VYa, VYb, VYc)" in f["evidence"]["moved_bar"] and "VX (VXa, VXb)" in f["evidence"]["moved_bar"]
+    assert "moved in its fixture" in f["evidence"]["confidence_reason"]
+    monkeypatch.setattr(D, "VOLUMETRIC_MOVED_BAR_RIVAL", False)
+    f0 = _discover(campaign, slipped).to_report()["findings"][0]
+    assert "moved_bar" not in f0["evidence"] and "moved in its fixture" not in f0["evidence"]["confidence_reason"]
+
+
+def test_a_warming_drift_with_immaterial_structure_beside_it_stays_named(campaign, monkeypatch):
+    """The significant-left hedge spares a catalogue cause that explains as much as a plain smooth of its own
+    covariate (core.discover.VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE, 0.75): a drift of 8 ppm (random signs, a warming
+    course tau (2 - tau)) reads `thermal_drift` confidently (rival share 0.97) beside structure left significant
+    though immaterial; with every named cause hedged (the share None) it reads ambiguous (review31c's grid: 8 right
+    names hedged so)."""
+    import core.discover as D
+
+    meas = campaign[0]
+    rng = np.random.default_rng([2, 31])
+    s = 8e-6 * rng.choice([-1.0, 1.0], 3) * rng.uniform(0.7, 1.0, 3)
+    drifted = []
+    for i, m in enumerate(meas):
+        tau = i / (len(meas) - 1)
+        f, J = 1 + s * tau * (2 - tau), np.asarray(m.J_m)
+        drifted.append(dataclasses.replace(m, O_R=(np.asarray(m.O_R) + J) * f - J, q_R=(np.asarray(m.q_R) + J) * f - J))
+    rep = _discover(campaign, drifted).to_report()
+    f = rep["findings"][0]
+    assert f["cause"] == "thermal_drift" and f["evidence"]["confidence"] == "named", _said(rep)
+    assert f["evidence"]["rival_share"] >= 0.75
+    monkeypatch.setattr(D, "VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE", None)
+    f0 = _discover(campaign, drifted).to_report()["findings"][0]
+    assert f0["cause"] == "thermal_drift" and f0["evidence"]["confidence"] == "ambiguous"
+    assert "significant though below materiality" in f0["evidence"]["confidence_reason"]
