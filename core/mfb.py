@@ -643,6 +643,15 @@ def align_on_cmm(O_R, z_R, *, roll: bool = True) -> np.ndarray:
     return O
 
 
+def step_gauge_u_m(L_m) -> np.ndarray:
+    """Standard uncertainty of the step gauge's calibrated distance L from its reference face, m: the
+    paper's step gauge, U(k=2) = 0.3 um + 1.5e-6 L (Viprey 2016), halved. The distance's, not a
+    face's: the reference face (L = 0, at O_1) has none of its own to add to the others'. The one
+    formula of :func:`reversal_calibration`'s default and of the simulated step gauge
+    (scenarios.mfb.reversal_on_cmm)."""
+    return 0.5 * (0.3e-6 + 1.5e-6 * np.asarray(L_m, float))
+
+
 @dataclass(frozen=True)
 class BarCalibration:
     """Calibrated deviations of the points of interest (eq. 4) with uncertainty.
@@ -683,7 +692,7 @@ def reversal_calibration(M_norm, M_rev, E_XX_cmm_m=None, *, pitch_m: float = MFB
         against a step gauge; default 0.
     u_step_gauge_m : (N,) float, optional
         Standard uncertainty of ``E_XX_cmm_m`` (default: the paper's step
-        gauge, U(k=2) = 0.3 um + 1.5e-6 L).
+        gauge at L = (i-1) x pitch from O_1, :func:`step_gauge_u_m`).
     declared_norm, declared_rev : str
         Declared orientations of the two set-ups; :class:`OrientationError`
         names the shifted holes when a set-up is not what it is declared.
@@ -727,7 +736,7 @@ def reversal_calibration(M_norm, M_rev, E_XX_cmm_m=None, *, pitch_m: float = MFB
     Exx_cmm = np.zeros(N) if E_XX_cmm_m is None else np.asarray(E_XX_cmm_m, float)
     if Exx_cmm.shape != (N,):
         raise ConfigError(f"reversal_calibration: E_XX_cmm_m must be ({N},), got {Exx_cmm.shape}")
-    u_sg = (0.5 * (0.3e-6 + 1.5e-6 * x_nom) if u_step_gauge_m is None
+    u_sg = (step_gauge_u_m(x_nom) if u_step_gauge_m is None
             else np.broadcast_to(np.asarray(u_step_gauge_m, float), (N,)))
     per = np.empty((r, N, 3))
     per[:, :, 0] = 0.5 * (Mn[:, :, 0] + Mr[:, :, 0]) - x_nom + Exx_cmm

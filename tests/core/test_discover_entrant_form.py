@@ -15,7 +15,7 @@ import pytest
 import core.discover as D
 from core.baseline import extra_columns
 from core.touches import from_log
-from scenarios.blind import gen_b
+from scenarios.blind import gen_a, gen_b
 
 
 def _report(monkeypatch, on: bool | None, effect: str, seed: int, gen=gen_b) -> dict:
@@ -51,3 +51,28 @@ def test_gen_b_thermal_drift_1254_named_on_its_warm_up(monkeypatch):
     assert not any(f_.get("evidence", {}).get("entrant_form_held_out") for f_ in off["findings"])
     assert any(r["cause"] == "thermal_drift" and r["reason"].startswith("cross-validated gain")
                for r in off["rejected"]), off["rejected"]
+
+
+def test_same_covariate_rule_is_on():
+    assert D.ENTRANT_FORM_SAME_COVARIATE is True
+
+
+def test_gen_a_part_change_1009_keeps_part_change_with_other_forms_of_its_covariate_only(monkeypatch):
+    """:data:`core.discover.ENTRANT_FORM_SAME_COVARIATE`'s own campaign, the one its docstring cites: gen_a
+    part_change 1009 (a tuning seed; the truth part_change on wall6). part_change's form enters round one and takes
+    it, named (ambiguous) on wall6. Without the rule, another hypothesis under another cause's name, a periodic
+    error's X axis (held-out mean square 1.27 um^2 against part_change's 8.87; its Y axis had entered the round),
+    takes the round as an 'entrant form' and part_change is then refused: `periodic_axis_error`, a wrong name.
+    (0.7 s a run.)"""
+    on = _report(monkeypatch, None, "part_change", 1009, gen=gen_a)
+    f = on["findings"][0]
+    assert f["cause"] == "part_change" and f["params"]["feature"] == "wall6", on["findings"]
+    assert not f.get("evidence", {}).get("entrant_form_held_out")  # the round's own winner: no entrant form
+    monkeypatch.setattr(D, "ENTRANT_FORM_SAME_COVARIATE", False)
+    off = _report(monkeypatch, None, "part_change", 1009, gen=gen_a)
+    g = off["findings"][0]
+    assert g["cause"] == "periodic_axis_error" and g["params"]["axis"] == "X", off["findings"]
+    e = g["evidence"]["entrant_form_held_out"]
+    # the other axis won over part_change on held-out data: the entrant-form rule's own condition, as booked
+    assert e["won_over"] == "part_change" and e["cv_um2"] < e["its_cv_um2"] - e["margin_um2"], e
+    assert any(r["cause"] == "part_change" for r in off["rejected"]), off["rejected"]

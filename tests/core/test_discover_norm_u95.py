@@ -278,3 +278,55 @@ def test_a_norm_with_a_coefficient_the_data_cannot_see_is_not_reported():
     f = next(f for f in rep["findings"] if f["cause"] == "periodic_axis_error")
     assert f["evidence"]["not_identifiable_directions"] >= 1
     assert f["params"]["EXX_amplitude_um"] is None and f["params_u95"]["EXX_amplitude_um"] is None
+
+
+def _first_finding(monkeypatch, gen, effect, seed, **flags):
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    for k, v in flags.items():
+        monkeypatch.setattr(D, k, v)
+    log, tr = gen.generate(effect, seed)
+    t = from_log(log)
+    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()[
+        "findings"][0], tr
+
+
+def test_norm_intervals_rule_in_the_report(monkeypatch):
+    """:data:`core.discover.NORM_INTERVALS` in a report of its own (review31d F9: only the identity snapshot failed
+    without it). gen_a periodic_axis_error 1000 (a tuning seed, the truth a Y-axis periodic error): the finding's
+    cross amplitude EXY (0.038 um, of the order of its noise) gets the norm's interval, which stops at 0 (a norm
+    is >= 0), and its U95 is the interval's symmetric cover max(hi - v, v - lo); without the rule the delta
+    method's 0.068 um (v - U95 < 0), no interval. (1 s a run.)"""
+    from scenarios.blind import gen_a
+
+    f, tr = _first_finding(monkeypatch, gen_a, "periodic_axis_error", 1000)
+    assert f["cause"] == "periodic_axis_error" and f["params"]["axis"] == tr.params["axis"] == "Y", f
+    iv = f["evidence"]["magnitude_intervals"]
+    assert set(iv) == {"EXY_amplitude_um", "EYY_amplitude_um"}
+    for key, (lo, hi) in iv.items():
+        v = f["params"][key]
+        assert lo <= v <= hi and f["params_u95"][key] == pytest.approx(max(hi - v, v - lo), rel=1e-12), key
+    assert iv["EXY_amplitude_um"][0] == 0.0 and iv["EYY_amplitude_um"][0] > 2.0
+    g, _ = _first_finding(monkeypatch, gen_a, "periodic_axis_error", 1000, NORM_INTERVALS=False)
+    assert g["params"]["EXY_amplitude_um"] == f["params"]["EXY_amplitude_um"]
+    assert "magnitude_intervals" not in g["evidence"]
+    assert g["params"]["EXY_amplitude_um"] - g["params_u95"]["EXY_amplitude_um"] < 0.0  # the delta method's
+
+
+def test_profile_nonlinear_rule_covers_a_centre_the_delta_method_misses(monkeypatch):
+    """:data:`core.discover.PROFILE_NONLINEAR` in a report of its own (review31d F9). gen_b local_scale_defect 1000
+    (a tuning seed, the truth's centre -154.85 mm on Y): the finding's centre -153.91 mm, 0.94 mm off. Its U95 from
+    the profile likelihood, 1.16 mm (the interval [-154.49, -152.75] booked in magnitude_intervals), covers the
+    truth; the delta method's, 0.56 mm, does not (without the rule). (1-2 s a run.)"""
+    from scenarios.blind import gen_b
+
+    f, tr = _first_finding(monkeypatch, gen_b, "local_scale_defect", 1000)
+    assert f["cause"] == "local_scale_defect" and f["params"]["axis"] == "Y", f
+    err = abs(f["params"]["centre_mm"] - tr.params["centre_mm"])
+    assert 0.9 < err <= f["params_u95"]["centre_mm"], (err, f["params_u95"])
+    assert "centre_mm" in f["evidence"]["magnitude_intervals"]
+    g, _ = _first_finding(monkeypatch, gen_b, "local_scale_defect", 1000, PROFILE_NONLINEAR=False)
+    assert g["params"]["centre_mm"] == f["params"]["centre_mm"]
+    assert g["params_u95"]["centre_mm"] < err  # the delta method's 0.56 mm misses the truth
+    assert "magnitude_intervals" not in g["evidence"]

@@ -352,3 +352,63 @@ def test_quadratic_form_sf_bad_input():
                         (([1.0],), "degrees of freedom")):
         with pytest.raises(ConfigError, match=match):
             quadratic_form_sf(*args)
+
+
+# ---------------------------------------------------------------------------
+# known answers of solve's own (review31d F3: sigma, dof, rank threshold)
+# ---------------------------------------------------------------------------
+def test_constrained_line_known_answer_by_hand():
+    """A line y = a + b x through the point (1, 1) (the constraint a + b = 1), four observations x = 0..3,
+    y = 1, 2, 2, 4. By hand: a = 1 - b, so y - 1 = b (x - 1): b = sum (x-1)(y-1) / sum (x-1)^2
+    = (0 + 0 + 1 + 6) / (1 + 0 + 1 + 4) = 7/6, a = -1/6; residuals 7/6, 1, -1/6, 2/3, RSS = (49 + 36 + 1 + 16)/36
+    = 17/6; dof = m - n + c = 4 - 2 + 1 = 3; sigma^2 = RSS / dof = 17/18; var b = sigma^2 / sum (x-1)^2 = 17/108,
+    a = 1 - b: var a = var b, cov(a, b) = -var b; rms = sqrt(RSS / m) = sqrt(17/24). Tolerance 1e-14 (rounding of
+    a 2 x 2 problem); a sigma over dof + 1 moves sigma by 13 %, a dof of m - n + c + 1 to 4."""
+    x = np.arange(4.0)
+    A = np.column_stack([np.ones(4), x])
+    y = np.array([1.0, 2.0, 2.0, 4.0])
+    for cov in ("full", "std"):
+        sol = solve(A, y, C=np.array([[1.0, 1.0]]), d=np.array([1.0]), covariance=cov)
+        np.testing.assert_allclose(sol.theta, [-1 / 6, 7 / 6], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(sol.residuals, [7 / 6, 1.0, -1 / 6, 2 / 3], rtol=0, atol=1e-14)
+        assert sol.dof == 3 and sol.sigma_source == "residuals"
+        assert sol.sigma == pytest.approx(np.sqrt(17 / 18), rel=1e-14)
+        assert sol.rms == pytest.approx(np.sqrt(17 / 24), rel=1e-14)
+        np.testing.assert_allclose(sol.std, np.sqrt(17 / 108) * np.ones(2), rtol=1e-13)
+    np.testing.assert_allclose(sol_full_cov := solve(A, y, C=np.array([[1.0, 1.0]]), d=np.array([1.0]),
+                                                     covariance="full").cov,
+                               17 / 108 * np.array([[1.0, -1.0], [-1.0, 1.0]]), rtol=1e-13)
+    assert sol_full_cov.shape == (2, 2)
+    # unconstrained, the same data: the ordinary line, dof m - n = 2, sigma^2 = RSS / 2 (numpy's lstsq for RSS)
+    free = solve(A, y)
+    rss = float(np.linalg.lstsq(A, y, rcond=None)[1][0])
+    assert free.dof == 2 and free.sigma == pytest.approx(np.sqrt(rss / 2), rel=1e-13)
+
+
+def _near_collinear(eps):
+    """Two columns u and u + eps v (u, v orthonormal), four rows. Scaled to unit norm, their normal matrix is
+    [[1, c], [c, 1]] with c = 1 / sqrt(1 + eps^2): relative eigenvalue (1 - c) / (1 + c) ~ eps^2 / 4."""
+    u = np.array([1.0, 1.0, 1.0, 1.0]) / 2
+    v = np.array([1.0, -1.0, 1.0, -1.0]) / 2
+    c = 1 / np.sqrt(1 + eps ** 2)
+    return np.column_stack([u, u + eps * v]), (1 - c) / (1 + c)
+
+
+def test_rank_threshold_either_side_of_rank_tol():
+    """RANK_TOL (1e-12: a relative eigenvalue of the column-scaled normal matrix, singular-value ratio 1e-6):
+    two nearly collinear columns whose relative eigenvalue is 1e-11 (10 x above) are solved, and at 1e-13
+    (10 x below) refused as one unidentifiable combination, named. A threshold 1e4 x smaller accepts the second;
+    1e2 x larger refuses the first. (The eigenvalue ~1e-13 is computed to ~1e-16 absolute: 0.1 %.)"""
+    from core.lsq import RANK_TOL
+
+    assert RANK_TOL == 1e-12
+    A_ok, r_ok = _near_collinear(2 * np.sqrt(1e-11))
+    A_bad, r_bad = _near_collinear(2 * np.sqrt(1e-13))
+    assert r_ok == pytest.approx(1e-11, rel=1e-4) and r_bad == pytest.approx(1e-13, rel=1e-4)
+    b = np.array([1.0, 2.0, 0.5, 1.5])
+    sol = solve(A_ok, b, names=["p", "q"])
+    # the fit is b's projection on span(u, v) = (b.u) u + (b.v) v = 2.5 u - v, by hand; through the normal matrix
+    # to about its condition (1e11) x 1.1e-16 = 1.1e-5 (measured 1.35e-6)
+    np.testing.assert_allclose(A_ok @ sol.theta, [0.75, 1.75, 0.75, 1.75], rtol=0, atol=1.1e-5)
+    with pytest.raises(IdentifiabilityError, match=r"\bp\b.*\bq\b|\bq\b.*\bp\b"):
+        solve(A_bad, b, names=["p", "q"])

@@ -100,6 +100,97 @@ def test_reversal_recovers_bar_within_uncertainty():
     assert dev.max() < 0.2e-6  # 5 repeats of 0.05 um noise
 
 
+def test_reversal_u_and_u95_known_answers_by_hand():
+    """review31d F2: u and U95 of eqs 5-7 worked by hand (GUM: the mean of r repeats, type A s / sqrt(r); the
+    step gauge's type B; Welch-Satterthwaite with an infinite-dof step gauge; k = t(0.975, nu) from scipy).
+    A bar and CMM read without noise, r = 3 repeats, and three readings moved per repeat by a = 0, 0.2, 0.4 um:
+    hole 5's x in the normal set-up (Exx = (M_X^NR + M_X^R) / 2: the repeats' Exx 0, 0.1, 0.2 um), hole 7's y in
+    the normal set-up (Eyx = (M_Y^NR - M_Y^R) / 2: 0, 0.1, 0.2 um), hole 9's z in the reversed one (Ezx: 0, -0.1,
+    -0.2 um). Each: mean 0.1 um in size, s = 0.1 um (squares 0.01 + 0 + 0.01 over r - 1 = 2), type A
+    u_A = 0.1 / sqrt(3) = 0.057735 um.
+    - hole 5 (x = 4 pitch = 0.2 m from O_1), the default step gauge, U(k=2) = 0.3 + 1.5 x 0.2 = 0.6 um,
+      u_sg = 0.3 um: u = sqrt(0.01/3 + 0.09) = 0.305505 um; nu = 2 (u / u_A)^4 = 2 x 28^2 = 1568;
+      k = t(0.975, 1568) = 1.96148; U95 = 0.599241 um.
+    - hole 7's Eyx and hole 9's Ezx (no step gauge): u = u_A, nu = r - 1 = 2, k = t(0.975, 2) = 4.30265,
+      U95 = 0.248414 um.
+    - the other holes' Exx (no scatter): u = u_sg = 0.5 (0.3 + 1.5 x) um, k = 2 (the code's choice for an
+      infinite nu: no type A); their Eyx, Ezx: 0.
+    Tolerance rel 1e-9: the readings carry x up to 0.55 m, whose rounding (1e-16 m) is 1e-9 of the 0.1 um
+    scatter; dropping / sqrt(r) moves u_A by 1.7x, Welch-Satterthwaite's r - 1 -> r + 5 moves k by 6e-4 at hole 5
+    and 46 % at hole 7, a step gauge u doubled moves hole 5's u by 1.9x."""
+    from scipy.stats import t as student
+
+    E0 = np.zeros((12, 3))
+    NR, cmm = _cmm(E0, np.random.default_rng(0), 3, False, sigma=0.0)
+    R, _ = _cmm(E0, np.random.default_rng(0), 3, True, sigma=0.0)
+    a = np.array([0.0, 0.2e-6, 0.4e-6])
+    NR[:, 4, 0] += a
+    NR[:, 6, 1] += a
+    R[:, 8, 2] += a
+    cal = mfb.reversal_calibration(NR, R, E_XX_cmm_m=cmm[:, 0])  # the default step gauge
+    assert cal.n_repeats == 3
+    uA = 0.1e-6 / np.sqrt(3)
+    x = np.arange(12) * 0.050
+    u_sg = 0.5 * (0.3e-6 + 1.5e-6 * x)
+    assert u_sg[4] == pytest.approx(0.3e-6, rel=1e-12)
+    u5 = np.sqrt(uA ** 2 + 0.09e-12)
+    assert u5 == pytest.approx(0.305505e-6, rel=1e-6)
+    k5 = student.ppf(0.975, 1568.0)
+    k2 = student.ppf(0.975, 2.0)
+    assert (k5, k2) == (pytest.approx(1.96148, abs=1e-5), pytest.approx(4.30265, abs=1e-5))
+    E = np.zeros((12, 3))
+    E[4, 0], E[6, 1], E[8, 2] = 0.1e-6, 0.1e-6, -0.1e-6
+    u = np.zeros((12, 3))
+    u[:, 0] = u_sg
+    u[4, 0], u[6, 1], u[8, 2] = u5, uA, uA
+    U = 2.0 * u
+    U[4, 0], U[6, 1], U[8, 2] = k5 * u5, k2 * uA, k2 * uA
+    assert U[4, 0] == pytest.approx(0.599241e-6, rel=1e-6) and U[6, 1] == pytest.approx(0.248414e-6, rel=1e-6)
+    np.testing.assert_allclose(cal.E_m, E, rtol=0, atol=1e-16)  # the rounding of x ~ 0.55 m
+    np.testing.assert_allclose(cal.u_m, u, rtol=1e-9, atol=1e-18)
+    np.testing.assert_allclose(cal.U95_m, U, rtol=1e-9, atol=1e-18)
+    # a given step gauge is taken as given: u = 0.2 um at every hole, hole 5's nu = 2 (u / u_A)^4 by hand
+    g = mfb.reversal_calibration(NR, R, E_XX_cmm_m=cmm[:, 0], u_step_gauge_m=0.2e-6)
+    ug = np.sqrt(uA ** 2 + 0.04e-12)
+    nu = 2.0 * (ug / uA) ** 4  # = 2 (13)^2 = 338
+    assert nu == pytest.approx(338.0, rel=1e-9)
+    assert g.u_m[4, 0] == pytest.approx(ug, rel=1e-9) and g.u_m[0, 0] == pytest.approx(0.2e-6, rel=1e-12)
+    assert g.U95_m[4, 0] == pytest.approx(student.ppf(0.975, 338.0) * ug, rel=1e-9)
+    assert mfb.step_gauge_u_m(0.2) == pytest.approx(0.3e-6, rel=1e-12)  # the one formula, U(k=2) 0.6 um at 0.2 m
+
+
+#: Draws of the reversal's coverage test (independent of each other and of every other test's).
+REVERSAL_COVERAGE_DRAWS = 200
+
+
+def test_reversal_u95_covers_95_percent_neither_less_nor_more():
+    """review31d F2: the U95 must cover about 95 % of the calibrations, not 'at least 90 %' (an over-wide U95 passed
+    that: type A without / sqrt(r), 2.2x; a step gauge's u doubled). Truth -> noise -> estimate: a bar (the default
+    deviations) on a CMM with its straightnesses, 5 repeats of each set-up with 1 um of noise per coordinate (the
+    repeats' type A u_A = 1 / sqrt(2 x 5) = 0.32 um, of the step gauge's size, 0.15-0.56 um: the
+    Welch-Satterthwaite dof between 4 and ~100), the step gauge read with an error drawn from its own u at each hole
+    (core's default). 200 calibrations: 2,400 independent values of each of Exx, Eyx, Ezx (every hole's and
+    coordinate's noise its own). Each's fraction within U95 is binomial about 0.95 (Eyx, Ezx: exact, a t of 4 dof;
+    Exx: Welch-Satterthwaite's approximation), its SD sqrt(0.95 x 0.05 / 2400) = 0.44 %: the band 93-97 % is
+    +-4.5 SD (a false failure about 1e-5 per coordinate). Over-wide fails too: u_A 2.2x covers ~100 % of Eyx and
+    Ezx; a doubled step gauge u ~99 % of Exx; Welch-Satterthwaite's dof r + 5 in place of r - 1 (k 2.23 for 2.78)
+    ~91 % of Eyx, Ezx."""
+    from sim.artefacts import mfb_default_deviations
+
+    rng = np.random.default_rng(2031)
+    E = mfb_default_deviations()
+    x = np.arange(12) * MFB.pitch_m
+    u_sg = 0.5 * (0.3e-6 + 1.5e-6 * x)  # the paper's step gauge, U(k=2) 0.3 um + 1.5 um/m, by hand
+    inside = np.zeros(3)
+    for _ in range(REVERSAL_COVERAGE_DRAWS):
+        NR, cmm = _cmm(E, rng, 5, False, sigma=1e-6)
+        R, _ = _cmm(E, rng, 5, True, sigma=1e-6)
+        cal = mfb.reversal_calibration(NR, R, E_XX_cmm_m=cmm[:, 0] + u_sg * rng.standard_normal(12))
+        inside += np.sum(np.abs(cal.E_m - E) <= cal.U95_m, axis=0)
+    frac = inside / (12 * REVERSAL_COVERAGE_DRAWS)
+    assert np.all((frac >= 0.93) & (frac <= 0.97)), frac
+
+
 def test_reversal_wrong_setup_named():
     from sim.artefacts import mfb_default_deviations
 

@@ -31,7 +31,9 @@ def test_monte_carlo_agrees_with_linear_within_sampling_error(pocket):
     z = (mc.u[free] - lin.u[free]) / (lin.u[free] / np.sqrt(2 * (mc.runs - 1)))
     assert np.abs(z).max() < 4.5
     assert np.allclose(mc.G_form_u, lin.G_form_u, rtol=4.5 / np.sqrt(2 * 3999))
-    # MC 95 % coverage interval ~ +-1.96 u for this linear-Gaussian problem (quantile error ~3 %)
+    # MC 95 % coverage interval ~ +-1.96 u for this linear-Gaussian problem. A 2.5 % quantile of R = 4000 draws has
+    # SE sqrt(p (1 - p) / R) / phi(1.96) = 0.0422 u, 2.16 % of 1.96 u; measured over these 298 values (seed 7) the
+    # relative error's RMS is 2.7 %, its max 6.1 %: rtol 0.12 is 4.4 of the measured RMS (5.6 theoretical SE)
     np.testing.assert_allclose(mc.hi[free], 1.96 * lin.u[free], rtol=0.12)
     np.testing.assert_allclose(mc.lo[free], -1.96 * lin.u[free], rtol=0.12)
 

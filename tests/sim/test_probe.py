@@ -127,8 +127,67 @@ def test_pretravel_lobing_and_noise():
     res = simulate_touches(Translated(), ProbeConfig(), rng, start, np.tile([-1.0, 0, 0], (n, 1)),
                            np.full(n, 6e-3), None, np.zeros(n), np.full(n, 0.004), [pl.sdf],
                            np.zeros(n, int), np.broadcast_to(np.eye(4), (n, 4, 4)))
-    # sigma = 0.125 um; the sample std of 4000 draws is within 5 % (3.5 sigma of its spread)
+    # sigma = 0.125 um; the sample std of 4000 draws is within 5 %: the relative SD of a sample SD is
+    # 1 / sqrt(2 (n - 1)) = 1.12 %, so 5 % is 4.5 SD of its spread (a false failure ~7e-6)
     assert np.std(res.pos_R[:, 0]) == pytest.approx(0.125e-6, rel=0.05)
+
+
+def _pretravel_by_hand(d, pre, axial, lobes, per_feed=0.0, feed=0.004, feed_ref=0.004):
+    """The docstring's pre-travel written out apart from sim (ProbeConfig's attributes, one approach direction):
+    pre + axial d_z^2 + (1 - d_z^2) sum_k (a cos k phi + b sin k phi) + per_feed (feed - feed_ref),
+    phi = atan2(d_y, d_x)."""
+    import math
+
+    phi = math.atan2(d[1], d[0])
+    lob = sum(a * math.cos(k * phi) + b * math.sin(k * phi) for k, a, b in lobes)
+    return pre + axial * d[2] ** 2 + (1 - d[2] ** 2) * lob + per_feed * (feed - feed_ref)
+
+
+def test_pretravel_lobing_against_the_docstrings_formula():
+    """review31d F4: the lobing model, the truth every lobing study is scored against, at azimuths all round, at
+    elevations d_z = 0, +-0.6, -0.8, 1 (the lobing's weight 1 - d_z^2: 1, 0.64, 0.36, 0) and with sine
+    coefficients, two lobe orders at once; against the docstring's formula written apart (_pretravel_by_hand).
+    A hand value first: k = 2, a = 0.4, b = 0.3 um, azimuth 30 deg in the plane: 0.4 cos 60 + 0.3 sin 60 =
+    0.2 + 0.25981 = 0.45981 um (a mirrored phase, -b sin, gives -0.0598; no weight changes nothing here). The
+    same at d_z = -0.6 (the in-plane part 0.8): 0.64 x 0.45981 + the axial 0.36 x 0.7 um = 0.54628 um.
+    Tolerance 1e-18 m: the same double operations in another order (the values are ~1e-6 m)."""
+    import math
+
+    pr = ProbeConfig(pretravel_m=0.0, pretravel_axial_m=0.7e-6, lobing_m=((2, 0.4e-6, 0.3e-6),))
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    assert pr.pretravel(np.array([[c, s, 0.0]]), 0.004)[0] == pytest.approx(0.45981e-6, abs=1e-11)
+    assert pr.pretravel(np.array([[0.8 * c, 0.8 * s, -0.6]]), 0.004)[0] == pytest.approx(0.54628e-6, abs=1e-11)
+    lobes = ((2, 0.4e-6, 0.3e-6), (3, -0.2e-6, 0.25e-6))
+    pr = ProbeConfig(pretravel_m=1.0e-6, pretravel_axial_m=0.7e-6, lobing_m=lobes, pretravel_per_feed_s=0.01)
+    d = []
+    for az in np.radians([0.0, 17.0, 30.0, 75.0, 135.0, 200.0, 290.0, 333.0]):
+        for dz in (0.0, 0.6, -0.6, -0.8, 1.0):
+            h = math.sqrt(1 - dz * dz)
+            d.append([h * math.cos(az), h * math.sin(az), dz])
+    d = np.array(d)
+    got = pr.pretravel(d, 0.005)
+    want = [_pretravel_by_hand(v, 1.0e-6, 0.7e-6, lobes, 0.01, 0.005) for v in d]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-18)
+    assert np.ptp(got[::5]) > 0.5e-6  # the lobes do show in the plane (the check is not of a constant)
+
+
+def test_touch_pretravel_of_a_two_lobe_probe_at_30_deg_by_hand():
+    """A physical touch (review31d F4): a plane through the origin whose normal n is at azimuth 30 deg, touched along
+    d = -n (azimuth 210 deg) by a probe of pre-travel 1 um and two lobes a = 0.4, b = 0.3 um. The sphere meets the
+    plane with its centre R along n; it triggers delta later along d, so the reported centre is (R - delta) n.
+    By hand: 2 x 210 deg = 420 deg = 60 deg: delta = 1 + 0.4 x 0.5 + 0.3 x 0.86603 = 1.45981 um. Tilted, n with
+    n_z = 0.6 (d_z = -0.6, the in-plane part 0.8 at the same azimuth): delta = 1 + 0.36 x 0.7 (axial) + 0.64 x 0.45981
+    = 1.54628 um. Tolerance 1 nm, the contact's (the file's other contact checks)."""
+    import math
+
+    pr = ProbeConfig(pretravel_m=1.0e-6, pretravel_axial_m=0.7e-6, lobing_m=((2, 0.4e-6, 0.3e-6),),
+                     repeatability_k2_m=0)
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    for n, delta in ((np.array([c, s, 0.0]), 1.45981e-6), (np.array([0.8 * c, 0.8 * s, 0.6]), 1.54628e-6)):
+        res = touch(Translated(), A.Plane((0, 0, 0), tuple(n)), [(R + 2e-3) * n], -n, probe=pr)
+        assert res.status[0] == "ok"
+        assert float(res.pos_R[0] @ n) == pytest.approx(R - delta, abs=NM)
+        np.testing.assert_allclose(res.pos_R[0], (R - delta) * n, atol=NM)
 
 
 @pytest.mark.parametrize("kw,match", [({"stylus_r_m": -1.0}, "stylus_r_m"),
