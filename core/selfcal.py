@@ -1940,11 +1940,14 @@ def time_text(ts, biases: dict) -> str:
     """The note on a drift in time: what it is, its size, what it biases."""
     big = sorted(((b, v) for b, v in biases.items() if v["ratio_to_u95"] is not None and v["ratio_to_u95"] >= 0.5),
                  key=lambda kv: -kv[1]["ratio_to_u95"])
-    named = ", ".join(f"{b} by up to {v['shift']:.2f} {v['unit']} ({v['ratio_to_u95']:.1f} x its U95)" for b, v in big)
+    named = ", ".join(f"{b} by {v['shift']:.2f} {v['unit']} ({v['ratio_to_u95']:.1f} x its U95)" for b, v in big)
     return (f"residuals follow time ({ts.clock}; p = {ts.p:.1e} against noise, {ts.p_tables:.1e} against noise and "
             f"table model error): a drift of the tool relative to the part, fitted range X {ts.drift_um[0]:.2f} um, "
             f"Y {ts.drift_um[1]:.2f} um (beside what the set-ups' translations absorb); not in the U95: "
-            + (f"it biases {named}" if named else "its shift of every value stays under half its U95")
+            + (f"its visible part (what the residuals show) moves {named}; the part the set-ups' translations absorb"
+               " is not seen and adds to it, so the bias can be larger" if named
+               else "its visible part (what the residuals show) moves every value by under half its U95; the part the"
+                    " set-ups' translations absorb is not seen")
             + "; let the machine settle, or probe in an order that separates time from position")
 
 

@@ -300,5 +300,7 @@ def test_identify_names_a_drift_in_time(tmp_path, capsys):
     assert main(["identify", str(drift), "--json", str(out), "--mc", "0"]) == 0
     line = next(ln for ln in capsys.readouterr().out.splitlines() if "follow time" in ln)
     assert line.startswith("not covered by U95") and "t_s" in line
+    # (session 31: the shift is the drift's visible part, not a bound: what the set-ups' translations absorb adds)
+    assert "by up to" not in line and "visible part" in line and "absorb" in line
     td = json.loads(out.read_text())["not_covered"]["time_drift"]
     assert td["clock"] == "t_s" and abs(td["drift_range_um"]["X"] - 3.0) < 1.5 and td["p_value_tables"] < 1e-4
