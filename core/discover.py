@@ -2674,7 +2674,8 @@ class Discovery:
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
-        return rep
+        # (a rotary positioning baseline's figures are arc seconds: named so, session 31, review31 F11)
+        return bl_mod.positioning_report_units(rep, b.info.get("unit", "um"))
 
 
 # ---------------------------------------------------------------------------

@@ -213,6 +213,12 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     """
     from core.discover import LEFT_OUT_NOTE, cv_ratio_text, not_counted_words
 
+    unit = (rep.get("baseline") or {}).get("unit", "um")
+    if unit != "um":   # a rotary positioning test's report: arc seconds (core.baseline.positioning_report_units)
+        from core.baseline import positioning_report_units
+
+        back = _unit_keys_back(rep, unit)
+        return [positioning_report_units(ln, unit) for ln in summary_lines(back, kind)]
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
     # (what the repeats were taken beyond, besides the rates: a positioning run's time_by_direction)
@@ -275,6 +281,17 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
                                                  if kind == "planar" else ""))
             out.append(line)
     return out
+
+
+def _unit_keys_back(rep, unit: str):
+    """The report with its ``_<unit>`` keys named ``_um`` again (what :func:`summary_lines` reads), ``unit`` gone
+    from the baseline block; the values as they are."""
+    if isinstance(rep, dict):
+        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): _unit_keys_back(v, unit)
+                for k, v in rep.items() if not (k == "unit" and v == unit)}
+    if isinstance(rep, list):
+        return [_unit_keys_back(v, unit) for v in rep]
+    return rep
 
 
 def run(args) -> int:
