@@ -6,6 +6,8 @@ wrappers of :func:`evaluate_file` and :func:`simulate_test`.
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +94,10 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     if uncertainty is not None:
         budget = figure_uncertainty(result, uncertainty)
         rep["uncertainty"] = budget.to_report()
+        w = (budget.temperature or {}).get("warning")
+        if w:   # (the readings are not corrected to 20 C here: said where the figures are, review31 F10)
+            result = dataclasses.replace(result, warnings=tuple(result.warnings) + (w,))
+            rep["warnings"] = list(result.warnings)
     base = baseline(test)
     k = 1e3 if test.unit == "mm" else 3600.0
     ru = rep["unit"]
@@ -177,7 +183,11 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                   "scale-like contributions (instrument, cosine misalignment, temperature, expansion "
                   "coefficient) act on the range figures E, M, A and cancel at one target; the "
                   "environmental variation acts on all. Standard uncertainties (k = 1) below, "
-                  "expanded (k = 2) in the figures table."),
+                  "expanded (k = 2) in the figures table. "
+                  + (budget.temperature or {}).get("what", "").capitalize()
+                  + (f" (uncorrected, the expansion over the travel would be "
+                     f"{budget.temperature['expansion_if_uncorrected_um']:+.3f} µm)."
+                     if budget.temperature else "")),
             tables=[Table(["source", "u on E, M, A / µm", "u on B, R / µm"],
                           [[s, a, b] for s, (a, b) in budget.contributions.items()])]))
     b = rep["baseline"]
