@@ -1119,6 +1119,33 @@ def positioning_report_units(rep, unit: str):
     return rep
 
 
+#: A positioning run's report says its own words where the engine's are a planar campaign's (session 31, review31c):
+#: a fold is a cycle, a row a reading ("one event (a touch, or one set-up's touches)", ``time_trend: 'per set-up'``,
+#: "leave one group (set-up) out"). Applied to the report's text values (never to keys); False: the engine's words.
+POSITIONING_REPORT_WORDS = True
+_POSITIONING_WORDS = ((r"\bset-ups\b", "cycles"), (r"\bset-up\b", "cycle"), (r"\btouches\b", "readings"),
+                      (r"\btouch\b", "reading"))
+
+
+def positioning_report(rep: dict, bl: "Baseline") -> dict:
+    """A positioning baseline's discovery report in its own words and units (:data:`POSITIONING_REPORT_WORDS`,
+    :func:`positioning_report_units`); any other report as it is."""
+    if bl.kind != "positioning":
+        return rep
+    if POSITIONING_REPORT_WORDS:
+        def words(o):
+            if isinstance(o, dict):
+                return {k: words(v) for k, v in o.items()}
+            if isinstance(o, list):
+                return [words(v) for v in o]
+            if isinstance(o, str):
+                for a, b in _POSITIONING_WORDS:
+                    o = re.sub(a, b, o)
+            return o
+        rep = words(rep)
+    return positioning_report_units(rep, bl.info.get("unit", "um"))
+
+
 def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None,
                 rotary: bool = False) -> Baseline:
     """The ISO 230-2 baseline: a systematic deviation per target and direction, plus repeatability.

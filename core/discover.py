@@ -2674,8 +2674,8 @@ class Discovery:
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
-        # (a rotary positioning baseline's figures are arc seconds: named so, session 31, review31 F11)
-        return bl_mod.positioning_report_units(rep, b.info.get("unit", "um"))
+        # (a positioning run's report in its words, cycles and readings, and a rotary one's in arc seconds: session 31)
+        return bl_mod.positioning_report(rep, b)
 
 
 # ---------------------------------------------------------------------------

@@ -248,3 +248,25 @@ def test_the_rotary_summary_says_arcsec():
     lines = summary_lines(discover_baseline(positioning_from_log(_rotary_log())).to_report(), "positioning")
     assert lines[0].count("arcsec") == 2 and lines[1].startswith("noise") and "arcsec" in lines[1]
     assert not any(" um" in ln or "µm" in ln for ln in lines), lines
+
+
+def test_the_positioning_report_says_cycles_and_readings_and_no_fixed_ratio():
+    """review31c: a positioning report used a planar campaign's words (``time_trend: 'per set-up'``, "one event (a
+    touch, or one set-up's touches)") and printed a held-out/in-sample ratio that leaving a cycle out of means per
+    target and direction fixes at (n/(n-1))^2 whatever the data (5 balanced cycles: 1.5625, here to 1e-12). Now
+    cycles and readings, and no ratio line; the JSON keeps the ratio (the same figure)."""
+    import json
+
+    from scenarios.cli.discover import summary_lines
+
+    rep = discover_baseline(_run("outlier", 3)).to_report()
+    gap = discover_baseline(_run("none", 3)).to_report()["noise_um"]["cv_gap"]
+    assert gap["ratio"] == pytest.approx(1.5625, abs=1e-12) and gap["expected_ratio"] == pytest.approx(1.5625, abs=1e-12)
+    assert rep["noise_um"]["repeats"]["time_trend"] in ("per cycle", "shared", "none")
+    text = json.dumps(rep)
+    assert "set-up" not in text and "touch" not in text, [c for c in rep["conventions"] if "set-up" in c]
+    assert "leave one group (cycle) out" in text
+    lines = summary_lines(rep, "positioning")
+    assert not any("held-out" in ln for ln in lines) and "readings," in lines[0]
+    none = summary_lines(discover_baseline(_run("none", 3)).to_report(), "positioning")
+    assert any(ln.endswith("within the repeatability") for ln in none), none
