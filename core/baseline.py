@@ -1081,6 +1081,14 @@ class PositioningData:
 POSITIONING_TIME_BY_DIRECTION = 3
 
 
+#: The positioning baseline's ``direction_by_cycle`` covariate: the direction (+1/-1) times each cycle's indicator,
+#: a reversal of its own in each cycle (review31c rev_feed: the lost motion changing with the feed in alternate
+#: cycles read `unexplained` with the diagnosis pointing at order and time; this says where it lives). Its columns
+#: are taken beyond ``time_by_direction``'s (a reversal growing through the test is that one's: first there as
+#: before). Session 31. False: not tested.
+POSITIONING_DIRECTION_BY_CYCLE = True
+
+
 def _time_by_direction_basis(tau: np.ndarray) -> np.ndarray:
     """(n, POSITIONING_TIME_BY_DIRECTION) Legendre polynomials P_1..P_k of ``2 tau - 1`` (tau in [0, 1])."""
     u = 2.0 * np.asarray(tau, float) - 1.0
@@ -1229,6 +1237,18 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         covs.append(Covariate("time_by_direction", dr[:, None] * _time_by_direction_basis(tau), "basis",
                               POSITIONING_TIME_BY_DIRECTION, (0,),
                               "time, opposite in the two directions (a reversal that changes)", "time"))
+    if POSITIONING_DIRECTION_BY_CYCLE:
+        D = np.column_stack([dr * (cyc_idx == j) for j in range(len(cyc_ids))]).astype(float)
+        if POSITIONING_TIME_BY_DIRECTION:   # beyond a reversal that changes smoothly through the test (its own line):
+            # the combinations of the cycles' columns orthogonal to time_by_direction's (within the cycles' span: a
+            # within-cycle trend, a drift's, is not a reversal per cycle)
+            T = dr[:, None] * _time_by_direction_basis(tau)
+            u, sv, vt = np.linalg.svd(T.T @ D)
+            D = D @ vt[int(np.sum(sv > 1e-9 * max(sv.max(), 1e-300))):].T
+    if POSITIONING_DIRECTION_BY_CYCLE and D.shape[1]:
+        covs.append(Covariate("direction_by_cycle", D, "basis", D.shape[1], (0,),
+                              "the direction, differently in each cycle (a reversal that changes from cycle to "
+                              "cycle, beyond a smooth change through the test)", "time"))
     for name, v in (temps or {}).items():
         v = np.asarray(v, float)
         if np.all(np.isfinite(v)) and np.ptp(v) > 0:
