@@ -184,7 +184,7 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                   "coefficient) act on the range figures E, M, A and cancel at one target; the "
                   "environmental variation acts on all. Standard uncertainties (k = 1) below, "
                   "expanded (k = 2) in the figures table. "
-                  + (budget.temperature or {}).get("what", "").capitalize()
+                  + "".join(w[:1].upper() + w[1:] for w in [(budget.temperature or {}).get("what", "")])
                   + (f" (uncorrected, the expansion over the travel would be "
                      f"{budget.temperature['expansion_if_uncorrected_um']:+.3f} µm)."
                      if budget.temperature else "")),
