@@ -26,6 +26,7 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1177,13 +1178,81 @@ class PositioningData:
 POSITIONING_TIME_BY_DIRECTION = 3
 
 
+#: The positioning baseline's ``direction_by_cycle`` covariate: the direction (+1/-1) times each cycle's indicator,
+#: a reversal of its own in each cycle (review31c rev_feed: the lost motion changing with the feed in alternate
+#: cycles read `unexplained` with the diagnosis pointing at order and time; this says where it lives). Its columns
+#: are taken beyond ``time_by_direction``'s (a reversal growing through the test is that one's: first there as
+#: before). Session 31. False: not tested.
+POSITIONING_DIRECTION_BY_CYCLE = True
+
+
 def _time_by_direction_basis(tau: np.ndarray) -> np.ndarray:
     """(n, POSITIONING_TIME_BY_DIRECTION) Legendre polynomials P_1..P_k of ``2 tau - 1`` (tau in [0, 1])."""
     u = 2.0 * np.asarray(tau, float) - 1.0
     return np.polynomial.legendre.legvander(u, POSITIONING_TIME_BY_DIRECTION)[:, 1:]
 
 
-def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None) -> Baseline:
+#: Report unit of a rotary axis's positioning discovery: the one ``vmt iso230-2`` reports (core.positioning's
+#: REPORT_UNIT, arc seconds), its targets named in degrees. The engine writes its figures as ``value * 1e6`` under
+#: ``_um`` keys; a rotary baseline holds its readings in arcsec x 1e-6 (:data:`ROTARY_ENGINE_PER_RAD`) so that
+#: those numbers are arc seconds, and :func:`positioning_report_units` names them so. Session 31 (review31 F11):
+#: they were radians x 1e6 (urad) under ``_um`` keys and the targets radians x 1e3 under "mm" ('P=785.398mm+' for
+#: 45 deg).
+ROTARY_REPORT_UNIT = "arcsec"
+#: Engine units per radian of a rotary positioning baseline: arc seconds per radian x 1e-6.
+ROTARY_ENGINE_PER_RAD = 180.0 / np.pi * 3600.0 * 1e-6
+
+
+def positioning_report_units(rep, unit: str):
+    """A discovery report (or any part of it: dict, list, str) with its length unit renamed to ``unit``.
+
+    Keys ``*_um`` and ``*_um_*`` (and ``noise_um``) become ``*_<unit>``; in text, ``µm``/``um`` after a number or
+    a space, and ``_um`` in a parameter's name, become the unit. The values are not touched: they already are
+    in ``unit`` (a rotary positioning baseline's engine unit, :data:`ROTARY_ENGINE_PER_RAD`). Identity for "um".
+    """
+    if unit == "um":
+        return rep
+    if isinstance(rep, dict):
+        return {positioning_report_units(k, unit) if isinstance(k, str) else k: positioning_report_units(v, unit)
+                for k, v in rep.items()}
+    if isinstance(rep, (list, tuple)):
+        return type(rep)(positioning_report_units(v, unit) for v in rep)
+    if isinstance(rep, str):
+        s = re.sub(r"_um(?=_|\b)", f"_{unit}", rep)
+        s = s.replace("µm", unit)
+        return re.sub(r"(?<=[\d\s])um\b", unit, s)
+    return rep
+
+
+#: A positioning run's report says its own words where the engine's are a planar campaign's (session 31, review31c):
+#: a fold is a cycle, a row a reading ("one event (a touch, or one set-up's touches)", ``time_trend: 'per set-up'``,
+#: "leave one group (set-up) out"). Applied to the report's text values (never to keys); False: the engine's words.
+POSITIONING_REPORT_WORDS = True
+_POSITIONING_WORDS = ((r"\bset-ups\b", "cycles"), (r"\bset-up\b", "cycle"), (r"\btouches\b", "readings"),
+                      (r"\btouch\b", "reading"))
+
+
+def positioning_report(rep: dict, bl: "Baseline") -> dict:
+    """A positioning baseline's discovery report in its own words and units (:data:`POSITIONING_REPORT_WORDS`,
+    :func:`positioning_report_units`); any other report as it is."""
+    if bl.kind != "positioning":
+        return rep
+    if POSITIONING_REPORT_WORDS:
+        def words(o):
+            if isinstance(o, dict):
+                return {k: words(v) for k, v in o.items()}
+            if isinstance(o, list):
+                return [words(v) for v in o]
+            if isinstance(o, str):
+                for a, b in _POSITIONING_WORDS:
+                    o = re.sub(a, b, o)
+            return o
+        rep = words(rep)
+    return positioning_report_units(rep, bl.info.get("unit", "um"))
+
+
+def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict | None = None,
+                rotary: bool = False) -> Baseline:
     """The ISO 230-2 baseline: a systematic deviation per target and direction, plus repeatability.
 
     Parameters
@@ -1200,6 +1269,11 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         Time of each reading; the reading order when absent.
     temps : dict name -> (n,) float, optional
         Temperature sensors (``temp_<name>_C``).
+    rotary : bool
+        A rotary axis (targets and deviations in rad): the baseline holds them in arc seconds x 1e-6
+        (:data:`ROTARY_ENGINE_PER_RAD`), names its targets in degrees (``P=45deg+``) and says
+        ``unit: arcsec``, ``target_unit: deg`` in ``info``; the report's figures are then arc seconds
+        (:func:`positioning_report_units` names them). A linear axis's baseline is as before.
 
     The design has one column per (target, direction): the mean
     unidirectional positional deviations of ISO 230-2. Whatever the axis
@@ -1219,6 +1293,8 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
     """
     x = np.asarray(target_m, float).ravel()
     dev = np.asarray(deviation_m, float).ravel()
+    if rotary:
+        x, dev = x * ROTARY_ENGINE_PER_RAD, dev * ROTARY_ENGINE_PER_RAD
     cyc = np.asarray(cycle).ravel()
     dr = np.array([(1 if str(v).strip() in ("+", "1", "+1") else -1 if str(v).strip() in ("-", "-1") else 0)
                    for v in np.asarray(direction).ravel()])
@@ -1241,7 +1317,11 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
     mid, L = (x.max() + x.min()) / 2, max(np.ptp(x) / 2, 1e-12)
     tau = (t - t.min()) / max(np.ptp(t), 1e-12)
     data = PositioningData(x, (x - mid) / L, float(L), t, tau, dr, cyc_idx)
-    ids = tuple(f"P={k[0] * 1e-6:g}mm{'+' if k[1] > 0 else '-'}" for k in keys)
+    if rotary:   # (the target in degrees: arcsec x 1e-6 per engine unit, 1e-9 per key step)
+        ids = tuple(f"P={k[0] * 1e-9 / ROTARY_ENGINE_PER_RAD * 180.0 / np.pi:.10g}deg{'+' if k[1] > 0 else '-'}"
+                    for k in keys)
+    else:
+        ids = tuple(f"P={k[0] * 1e-6:g}mm{'+' if k[1] > 0 else '-'}" for k in keys)
     modes = np.ones((n, 1))
     covs = [Covariate("time", t, "smooth", 6, (0,), "time", "time"),
             Covariate("cycle", cyc_idx, "categorical", 0, (0,), "the cycle", "time"),
@@ -1254,6 +1334,18 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         covs.append(Covariate("time_by_direction", dr[:, None] * _time_by_direction_basis(tau), "basis",
                               POSITIONING_TIME_BY_DIRECTION, (0,),
                               "time, opposite in the two directions (a reversal that changes)", "time"))
+    if POSITIONING_DIRECTION_BY_CYCLE:
+        D = np.column_stack([dr * (cyc_idx == j) for j in range(len(cyc_ids))]).astype(float)
+        if POSITIONING_TIME_BY_DIRECTION:   # beyond a reversal that changes smoothly through the test (its own line):
+            # the combinations of the cycles' columns orthogonal to time_by_direction's (within the cycles' span: a
+            # within-cycle trend, a drift's, is not a reversal per cycle)
+            T = dr[:, None] * _time_by_direction_basis(tau)
+            u, sv, vt = np.linalg.svd(T.T @ D)
+            D = D @ vt[int(np.sum(sv > 1e-9 * max(sv.max(), 1e-300))):].T
+    if POSITIONING_DIRECTION_BY_CYCLE and D.shape[1]:
+        covs.append(Covariate("direction_by_cycle", D, "basis", D.shape[1], (0,),
+                              "the direction, differently in each cycle (a reversal that changes from cycle to "
+                              "cycle, beyond a smooth change through the test)", "time"))
     for name, v in (temps or {}).items():
         v = np.asarray(v, float)
         if np.all(np.isfinite(v)) and np.ptp(v) > 0:
@@ -1265,7 +1357,8 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         d=np.zeros(0), estimand=np.arange(A.shape[1]), estimand_ids=ids, geometry=None, replicate=col,
         covariates=tuple(covs), modes=modes, mode_names=("deviation",), rows=np.arange(n), data=data,
         conventions=("x_ij = measured - target (ISO 230-2); one mean per target and direction",),
-        info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids))},
+        info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids)),
+              **({"unit": ROTARY_REPORT_UNIT, "target_unit": "deg"} if rotary else {})},
         estimand_label="mean unidirectional positional deviation")
 
 
@@ -1274,7 +1367,8 @@ def positioning_from_log(log) -> Baseline:
 
     The valid readings as ISO 230-2 arranges them (:func:`core.positioning.arrange`
     and :func:`core.positioning.baseline`), converted to SI (mm -> m,
-    deg -> rad), with the log's ``temp_*_C`` columns as covariates.
+    deg -> rad), with the log's ``temp_*_C`` columns as covariates. A rotary
+    axis (``unit: deg``) gives a rotary baseline (figures in arc seconds).
     """
     from . import positioning as pos
     from .units import DEG
@@ -1289,4 +1383,4 @@ def positioning_from_log(log) -> Baseline:
     for name, v in getattr(log, "extra", {}).items():
         if name.startswith("temp_") and name.endswith("_C"):
             temps[name] = np.asarray(v, float)[pb.row]
-    return positioning(pb.target * k, pb.direction, pb.cycle, pb.deviation * k, t, temps)
+    return positioning(pb.target * k, pb.direction, pb.cycle, pb.deviation * k, t, temps, rotary=pb.unit == "deg")

@@ -2674,7 +2674,8 @@ class Discovery:
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
-        return rep
+        # (a positioning run's report in its words, cycles and readings, and a rotary one's in arc seconds: session 31)
+        return bl_mod.positioning_report(rep, b)
 
 
 # ---------------------------------------------------------------------------

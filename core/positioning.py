@@ -1414,12 +1414,21 @@ class UncertaintyInputs:
         Largest expected angle between the beam (scale) and the axis, µrad:
         the cosine error ``L (1 - cos φ) <= L φ² / 2``.
     temperature_C : float
-        Mean temperature of the machine scale (or part) during the test;
-        the readings are corrected to 20 °C with ``alpha_per_K``.
+        Mean temperature of the machine scale (or part) during the test,
+        for the budget only: vmt does NOT correct the readings. ISO 230-2
+        states its results at 20 °C; the readings must arrive corrected to
+        20 °C (a laser's material-temperature compensation, the nominal
+        differential expansion, applied at the instrument). What the
+        correction itself is uncertain by is booked here (``u_temperature_K``
+        through ``alpha_per_K``, ``|T - 20|`` through ``u_alpha_per_K``); the
+        correction ``L alpha_per_K (T - 20)`` that uncorrected readings would
+        still hold is said by :attr:`UncertaintyBudget.temperature` (session 31,
+        review31 F10: this said "the readings are corrected to 20 °C" and
+        nothing corrected them).
     u_temperature_K : float
         Standard uncertainty of that temperature, K.
     alpha_per_K : float
-        Expansion coefficient used for the correction (steel 11.5e-6).
+        Expansion coefficient of the correction that was applied (steel 11.5e-6).
     u_alpha_per_K : float
         Its standard uncertainty, 1/K.
     eve_um : float
@@ -1453,19 +1462,43 @@ class UncertaintyBudget:
 
     ``contributions``: source -> (u on the range figures, u on the
     difference figures), µm, k = 1. ``U``: figure name (``E``, ``R``, ...)
-    -> expanded uncertainty, µm.
+    -> expanded uncertainty, µm. ``temperature``: what was done about the
+    temperature (:func:`temperature_statement`): nothing to the readings.
     """
 
     travel_mm: float
     contributions: dict[str, tuple[float, float]]
     U: dict[str, float]
     k: float = 2.0
+    temperature: dict | None = None
 
     def to_report(self) -> dict:
         return {"k": self.k, "travel_mm": self.travel_mm,
                 "contributions": [{"source": s, "u_range_um": a, "u_difference_um": b}
                                   for s, (a, b) in self.contributions.items()],
-                **{f"U_{f}_um": v for f, v in self.U.items()}}
+                **{f"U_{f}_um": v for f, v in self.U.items()},
+                **({"temperature": dict(self.temperature)} if self.temperature is not None else {})}
+
+
+def temperature_statement(travel_mm: float, inputs: UncertaintyInputs) -> dict:
+    """What the budget did with the test's temperature: it corrects no reading (session 31, review31 F10).
+
+    ``expansion_if_uncorrected_um`` is the nominal expansion over the travel, ``L alpha (T - 20 °C)``: the
+    scale error E, M and A still hold if the readings did NOT arrive corrected to 20 °C (800 mm x 11.5e-6/K x
+    0.5 K = 4.6 um, outside the README sample's U = 2.07 um). ``warning``: a sentence when ``T != 20 °C``.
+    """
+    dT = inputs.temperature_C - 20.0
+    e = travel_mm * 1e3 * inputs.alpha_per_K * dT
+    out = {"temperature_C": inputs.temperature_C, "readings_corrected_by_vmt": False,
+           "expansion_if_uncorrected_um": e,
+           "what": "the readings are taken as already corrected to 20 °C (e.g. by the laser's material-temperature "
+                   "compensation); the temperature enters the uncertainty only"}
+    if dT != 0:
+        out["warning"] = (f"--temp-c {inputs.temperature_C:g}: vmt does not correct the readings to 20 °C; if they "
+                          f"did not arrive corrected, E, M and A hold a scale error L alpha (T - 20) = "
+                          f"{travel_mm:g} mm x {inputs.alpha_per_K:g}/K x {dT:+g} K = {e:+.3f} um that U "
+                          "does not cover")
+    return out
 
 
 def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> UncertaintyBudget:
@@ -1515,5 +1548,6 @@ def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> Unce
     k = 2.0
     U = {f: k * u_range for f in ("E_up", "E_down", "E", "M", "A_up", "A_down", "A")}
     U.update({f: k * u_diff for f in ("B", "B_mean", "R_up", "R_down", "R")})
-    return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k)
+    return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k,
+                             temperature=temperature_statement(L_mm, inputs))
 

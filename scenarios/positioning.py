@@ -6,6 +6,8 @@ wrappers of :func:`evaluate_file` and :func:`simulate_test`.
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +94,10 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     if uncertainty is not None:
         budget = figure_uncertainty(result, uncertainty)
         rep["uncertainty"] = budget.to_report()
+        w = (budget.temperature or {}).get("warning")
+        if w:   # (the readings are not corrected to 20 C here: said where the figures are, review31 F10)
+            result = dataclasses.replace(result, warnings=tuple(result.warnings) + (w,))
+            rep["warnings"] = list(result.warnings)
     base = baseline(test)
     k = 1e3 if test.unit == "mm" else 3600.0
     ru = rep["unit"]
@@ -177,7 +183,11 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                   "scale-like contributions (instrument, cosine misalignment, temperature, expansion "
                   "coefficient) act on the range figures E, M, A and cancel at one target; the "
                   "environmental variation acts on all. Standard uncertainties (k = 1) below, "
-                  "expanded (k = 2) in the figures table."),
+                  "expanded (k = 2) in the figures table. "
+                  + "".join(w[:1].upper() + w[1:] for w in [(budget.temperature or {}).get("what", "")])
+                  + (f" (uncorrected, the expansion over the travel would be "
+                     f"{budget.temperature['expansion_if_uncorrected_um']:+.3f} µm)."
+                     if budget.temperature else "")),
             tables=[Table(["source", "u on E, M, A / µm", "u on B, R / µm"],
                           [[s, a, b] for s, (a, b) in budget.contributions.items()])]))
     b = rep["baseline"]
@@ -216,7 +226,10 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
     time constant ``drift_tau_s``) to the axis's positioning error
     (``EXX`` for X, ...). Error values are ISO 230-1's (the tool relative
     to the workpiece), so the readings see them with their sign on a
-    table-side axis as on a tool-side one.
+    table-side axis as on a tool-side one. The log's metadata says what the
+    options added: ``added_reversal_um``, ``added_drift_um_per_h`` (and
+    ``added_reversal_sense``, ``added_drift_tau_s`` when given), on top of
+    the machine's own errors (``errors``).
     """
     from core.exceptions import ConfigError
     from sim.errorfuncs import Drift, Reversal
@@ -262,9 +275,11 @@ def simulate_test(machine_name: str, axis: str, rng: np.random.Generator, *, err
         travel_m=None if travel_mm is None else (travel_mm[0] * 1e-3, travel_mm[1] * 1e-3),
         overrun_m=overrun_mm * 1e-3, feed_mps=feed_mm_min * 1e-3 / 60.0, dwell_s=dwell_s,
         line_m=None if line_mm is None else np.asarray(line_mm, float) * 1e-3, rng=rng)
-    meta = {"errors": errors, "reversal_um": f"{reversal_um:g}", "drift_um_per_h": f"{drift_um_per_h:g}"}
+    # what the options ADD to the machine's own errors (named so: '# reversal_um: 0' read as the machine's reversal
+    # on a machine file whose EXX has reversal_um = 2, review31 F2); the machine's own are in 'errors'
+    meta = {"errors": errors, "added_reversal_um": f"{reversal_um:g}", "added_drift_um_per_h": f"{drift_um_per_h:g}"}
     if reversal_sense != "lead":  # a lead's log as before the sense existed
-        meta["reversal_sense"] = reversal_sense
+        meta["added_reversal_sense"] = reversal_sense
     if drift_tau_s:
-        meta["drift_tau_s"] = f"{drift_tau_s:g}"
+        meta["added_drift_tau_s"] = f"{drift_tau_s:g}"
     return simulate_positioning(machine, plan, rng, noise_m=noise_um * 1e-6, meta=meta)

@@ -51,16 +51,26 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     """
     from core.discover import LEFT_OUT_NOTE, cv_ratio_text, not_counted_words
 
+    unit = (rep.get("baseline") or {}).get("unit", "um")
+    if unit != "um":   # a rotary positioning test's report: arc seconds (core.baseline.positioning_report_units)
+        from core.baseline import positioning_report_units
+
+        back = _unit_keys_back(rep, unit)
+        return [positioning_report_units(ln, unit) for ln in summary_lines(back, kind)]
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
     # (what the repeats were taken beyond, besides the rates: a positioning run's time_by_direction)
     beyond = (" beyond " + ", ".join(nz["repeats"]["beyond"])
               if nz["method"] == "repeats" and (nz.get("repeats") or {}).get("beyond") else "")
+    # (a positioning run's held-out/in-sample ratio is not printed: leaving a cycle out of means per target and
+    # direction scales each residual by n/(n-1), so on balanced cycles the ratio is (n/(n-1))^2 whatever the data,
+    # 1.56 of 1.56 at p = 1 on every run (review31c); the JSON keeps noise_um.cv_gap)
+    gap = ("" if kind == "positioning" else
+           f"; held-out/in-sample ratio {nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
+           f"p = {nz['cv_gap']['p_value']:.2g})")
     out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
-           f"({b['n']} touches, {b['n_params']} parameters)",
-           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}{beyond}); held-out/in-sample ratio "
-           f"{nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
-           f"p = {nz['cv_gap']['p_value']:.2g})"]
+           f"({b['n']} {'readings' if kind == 'positioning' else 'touches'}, {b['n_params']} parameters)",
+           f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}{beyond}){gap}"]
     left = next((c for c in rep.get("conventions") or () if c.endswith(LEFT_OUT_NOTE)), None)
     if left is not None:  # said in the summary, not only in the JSON (review30c)
         out.append(f"left out   {left.split(' with ')[0]} with normals out of the XY plane (top faces, inclined "
@@ -75,7 +85,8 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     if not shown:
         out.append("diagnosis  no covariate carries structure (every smooth term's p >= 0.01)")
     if not rep["findings"]:
-        out.append("cause      none: the baseline explains the data within the probing noise")
+        out.append("cause      none: the baseline explains the data within the "
+                   + ("repeatability" if kind == "positioning" else "probing noise"))
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
         shown_params = list(f["params"].items())[:6]
@@ -113,6 +124,17 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
                                                  if kind == "planar" else ""))
             out.append(line)
     return out
+
+
+def _unit_keys_back(rep, unit: str):
+    """The report with its ``_<unit>`` keys named ``_um`` again (what :func:`summary_lines` reads), ``unit`` gone
+    from the baseline block; the values as they are."""
+    if isinstance(rep, dict):
+        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): _unit_keys_back(v, unit)
+                for k, v in rep.items() if not (k == "unit" and v == unit)}
+    if isinstance(rep, list):
+        return [_unit_keys_back(v, unit) for v in rep]
+    return rep
 
 
 def run(args) -> int:

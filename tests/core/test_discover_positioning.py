@@ -45,6 +45,8 @@ def _run(effect: str, seed: int):
         "cycle_parity": 2e-6 * np.where(c % 2 == 0, 1.0, -1.0),
         # (out of catalogue) a reversal that grows through the test: + readings drift up, - readings down
         "reversal_grow": 0.5 * 5e-6 * d * tau,
+        # (out of catalogue) a reversal that changes with the feed, run fast in alternate cycles (review31c rev_feed)
+        "reversal_feed": 0.5 * 3e-6 * d * (c % 2 == 0),
     }[effect]
     dev = sysdev + eff + rng.normal(0, SIG, len(x))
     return positioning(x, np.where(d > 0, "+", "-"), c, dev, ts)
@@ -166,3 +168,127 @@ def test_the_noise_beyond_time_by_direction_is_unbiased_under_no_effect():
     Tc = T - np.array([T[bl.replicate == g].mean(0) for g in bl.replicate])
     assert v[0].dof == replicate_scatter(bl.replicate, bl.y).dof - np.linalg.matrix_rank(Tc) < 88 - 5
     assert abs(np.mean([r.ss / r.dof for r in v]) - 1.0) < 0.05
+
+
+# --- a rotary axis: figures in arc seconds, targets in degrees (session 31, review31 F11) ---------------------------
+def _rotary_log():
+    """review31's pos_rot.csv in memory: axis C, 6 targets 0..270 deg x 5 linear cycles, readings to 1e-6 deg."""
+    from core.positioning import make_positioning_log
+
+    rng = np.random.default_rng(31)
+    P = np.array([0, 45, 90, 135, 180, 270], float)
+    rows, t = [], 3.0
+    for j in range(1, 6):
+        for d, seq in (("+", P), ("-", P[::-1])):
+            for p in seq:
+                dev = 2e-5 + 2e-5 * p / 270 + (-1.5e-5 if d == "-" else 0.0) + rng.normal(0, 5e-6)
+                rows.append((p, j, d, round(p + dev, 6), t))
+                t += 3.0
+    tg, c, d, m, ts = zip(*rows)
+    return make_positioning_log(tg, c, d, m, t_s=ts, unit="deg", meta={"axis": "C"})
+
+
+def test_a_rotary_positioning_log_is_reported_in_arcsec_with_targets_in_degrees():
+    """Known answer by hand: the baseline's rms and the mean of each target and direction from the readings in
+    arc seconds (3600 per degree), the same figures ``vmt iso230-2`` gives; no key or text says um or mm
+    (before: 'P=785.398mm+' for 45 deg and radians x 1e6 under '_um')."""
+    import json
+
+    from core.baseline import positioning_from_log
+
+    log = _rotary_log()
+    rep = discover_baseline(positioning_from_log(log)).to_report()
+    dev = (log.measured - log.target) * 3600.0
+    dirs = np.asarray(log.direction)
+    res, means = dev.copy(), {}
+    for p in np.unique(log.target):
+        for s in (1, -1):
+            k = (log.target == p) & (dirs == s)
+            means[f"P={p:g}deg{'+' if s > 0 else '-'}"] = dev[k].mean()
+            res[k] -= dev[k].mean()
+    assert rep["baseline"]["unit"] == "arcsec" and rep["baseline"]["target_unit"] == "deg"
+    # (1e-9 relative: the readings go deg -> rad -> arcsec x 1e-6 and through a least-squares fit)
+    assert rep["baseline"]["rms_arcsec"] == pytest.approx(np.sqrt(np.mean(res ** 2)), rel=1e-9)
+    assert rep["noise_arcsec"]["in_sample"]["sigma_arcsec"] == pytest.approx(
+        np.sqrt(np.sum(res ** 2) / (len(res) - len(means))), rel=1e-9)
+    got = {w["target"]: w["baseline_arcsec"] for w in rep["workpiece"]}
+    assert got.keys() == means.keys()
+    for k, v in means.items():
+        assert got[k] == pytest.approx(v, rel=1e-9, abs=1e-12)
+    text = json.dumps(rep, ensure_ascii=False)
+    assert "_um" not in text and "µm" not in text and "mm+" not in text and "mm-" not in text
+
+
+def test_a_rotary_baseline_is_its_linear_twin_in_arcsec():
+    """The same numbers as a linear axis (targets x 3.6 mm per degree, deviations 1 um per arc second) give the
+    same report, figure for figure, with a finding's parameters (a drift's offset in arcsec, its scale in ppm):
+    the engine sees the same arrays, only the names differ (1e-9 relative: rad -> arcsec rounding)."""
+    from core.baseline import ROTARY_ENGINE_PER_RAD
+
+    lin = _run("thermal_drift", 3)
+    x, dev = lin.data.x, lin.y
+    d = np.where(lin.data.direction > 0, "+", "-")
+    rot = positioning(x / ROTARY_ENGINE_PER_RAD, d, lin.groups, dev / ROTARY_ENGINE_PER_RAD, lin.data.t_s,
+                      rotary=True)
+    a, b = discover_baseline(lin).to_report(), discover_baseline(rot).to_report()
+    assert a["cause"] == b["cause"] == "thermal_drift"
+    fa, fb = a["findings"][0]["params"], b["findings"][0]["params"]
+    assert set(fb) == {"offset_change_arcsec", "scale_change_ppm"}
+    assert fb["offset_change_arcsec"] == pytest.approx(fa["offset_change_um"], rel=1e-9)
+    assert fb["scale_change_ppm"] == pytest.approx(fa["scale_change_ppm"], rel=1e-9)
+    assert b["baseline"]["rms_arcsec"] == pytest.approx(a["baseline"]["rms_um"], rel=1e-9)
+    assert b["noise_arcsec"]["sigma_arcsec"] == pytest.approx(a["noise_um"]["sigma_um"], rel=1e-9)
+    # targets: x m = x / 3.6e-3 deg
+    assert [w["target"] for w in b["workpiece"]][:2] == [
+        f"P={x0 / 3.6e-3:.10g}deg+" for x0 in np.unique(np.round(x, 9))[:2]]
+
+
+def test_the_rotary_summary_says_arcsec():
+    from core.baseline import positioning_from_log
+    from scenarios.cli.discover import summary_lines
+
+    lines = summary_lines(discover_baseline(positioning_from_log(_rotary_log())).to_report(), "positioning")
+    assert lines[0].count("arcsec") == 2 and lines[1].startswith("noise") and "arcsec" in lines[1]
+    assert not any(" um" in ln or "µm" in ln for ln in lines), lines
+
+
+def test_the_positioning_report_says_cycles_and_readings_and_no_fixed_ratio():
+    """review31c: a positioning report used a planar campaign's words (``time_trend: 'per set-up'``, "one event (a
+    touch, or one set-up's touches)") and printed a held-out/in-sample ratio that leaving a cycle out of means per
+    target and direction fixes at (n/(n-1))^2 whatever the data (5 balanced cycles: 1.5625, here to 1e-12). Now
+    cycles and readings, and no ratio line; the JSON keeps the ratio (the same figure)."""
+    import json
+
+    from scenarios.cli.discover import summary_lines
+
+    rep = discover_baseline(_run("outlier", 3)).to_report()
+    gap = discover_baseline(_run("none", 3)).to_report()["noise_um"]["cv_gap"]
+    assert gap["ratio"] == pytest.approx(1.5625, abs=1e-12) and gap["expected_ratio"] == pytest.approx(1.5625, abs=1e-12)
+    assert rep["noise_um"]["repeats"]["time_trend"] in ("per cycle", "shared", "none")
+    text = json.dumps(rep)
+    assert "set-up" not in text and "touch" not in text, [c for c in rep["conventions"] if "set-up" in c]
+    assert "leave one group (cycle) out" in text
+    lines = summary_lines(rep, "positioning")
+    assert not any("held-out" in ln for ln in lines) and "readings," in lines[0]
+    none = summary_lines(discover_baseline(_run("none", 3)).to_report(), "positioning")
+    assert any(ln.endswith("within the repeatability") for ln in none), none
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_a_reversal_that_changes_from_cycle_to_cycle_is_located_in_direction_by_cycle(seed):
+    """review31c rev_feed: a lost motion 3 um larger in alternate cycles read `unexplained` with the diagnosis at
+    order and time; the direction x cycle covariate (core.baseline.POSITIONING_DIRECTION_BY_CYCLE) is where it
+    lives: the first diagnosis line, p < 1e-6 (0.73 um RMS beside the means against 0.5 um of noise)."""
+    rep = discover_baseline(_run("reversal_feed", seed)).to_report()
+    assert rep["cause"] == "unexplained"
+    top = rep["diagnosis"][0]
+    assert top["covariate"] == "direction_by_cycle" and top["p_value"] < 1e-6, rep["diagnosis"][:3]
+
+
+def test_direction_by_cycle_raises_no_alarm_on_effect_free_runs():
+    """No effect: the new covariate's p-value is above the diagnosis level (0.01) on each of 10 runs, the cause
+    none (a false alarm per run at most the family rate: 10 runs cannot show more than that nothing fires)."""
+    for seed in range(10, 20):
+        rep = discover_baseline(_run("none", seed)).to_report()
+        d = {x["covariate"]: x["p_value"] for x in rep["diagnosis"]}
+        assert d["direction_by_cycle"] >= 0.01 and rep["cause"] == "none", (seed, d)

@@ -865,3 +865,33 @@ def test_headers_say_the_range_of_cycles_when_a_target_has_more():
     assert rep["cycles"] == 6 and cycles_said(rep) == "5-6 cycles"
     assert cycles_said(iso230_2(parse_positioning_log(hand_text(), "h.csv")).to_report()) == "5 cycles"
     assert cycles_said({"cycles": 4}) == "4 cycles"
+
+
+def test_temp_c_corrects_nothing_and_says_the_expansion_it_leaves(tmp_path):
+    """review31 F10: --temp-c books the correction's uncertainty; vmt applies no correction, and says so.
+
+    By hand on the README's sample (travel 800 mm, steel 11.5e-6/K, 20.5 C): L alpha (T - 20) =
+    800e3 um x 11.5e-6 x 0.5 = 4.6 um, the scale error E, M and A still hold if the readings did not arrive
+    corrected (outside the sample's U = 2.069 um); the figures are those without the option (nothing corrected),
+    the JSON and the warnings say it; at 20 C no warning."""
+    from pathlib import Path
+
+    from core.positioning import UncertaintyInputs
+    from scenarios.positioning import evaluate_file
+
+    sample = Path(__file__).resolve().parents[2] / "scenarios" / "data" / "positioning-sample.csv"
+    plain, _ = evaluate_file(sample, tmp_path / "a.json")
+    rep, warnings = evaluate_file(sample, tmp_path / "b.json", uncertainty=UncertaintyInputs(
+        u_instrument_um=0.1, u_instrument_um_per_m=0.25, misalignment_urad=200, temperature_C=20.5,
+        u_temperature_K=0.1, u_alpha_per_K=1e-6, eve_um=0.4))
+    for f in ("E_um", "M_um", "A_um", "B_um", "R_um"):
+        assert rep[f] == plain[f]
+    t = rep["uncertainty"]["temperature"]
+    assert t["readings_corrected_by_vmt"] is False and t["temperature_C"] == 20.5
+    assert t["expansion_if_uncorrected_um"] == pytest.approx(4.6, abs=1e-12)
+    assert rep["uncertainty"]["U_E_um"] == pytest.approx(2.0686, abs=1e-4)   # the README's U, by hand in F10
+    said = [w for w in warnings if w.startswith("--temp-c 20.5")]
+    assert len(said) == 1 and "+4.600 um" in said[0] and said == [w for w in rep["warnings"] if w in said]
+    rep20, w20 = evaluate_file(sample, tmp_path / "c.json", uncertainty=UncertaintyInputs(temperature_C=20.0))
+    assert rep20["uncertainty"]["temperature"]["expansion_if_uncorrected_um"] == 0.0
+    assert not any(w.startswith("--temp-c") for w in w20)

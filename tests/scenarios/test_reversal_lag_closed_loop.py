@@ -27,7 +27,7 @@ def test_iso_230_2_of_a_simulated_positioning_run_reads_the_sense(sense, sign):
     assert np.allclose(np.asarray(res.B_i) * 1e3, sign * SIZE_UM, atol=1e-9)
     assert res.B_mean * 1e3 == pytest.approx(sign * SIZE_UM, abs=1e-9)
     assert res.B * 1e3 == pytest.approx(SIZE_UM, abs=1e-9)  # 2.13: max |B_i|, unsigned
-    assert log.meta.get("reversal_sense", "lead") == sense
+    assert log.meta.get("added_reversal_sense", "lead") == sense
 
 
 def test_a_lead_positioning_log_is_as_before_the_sense():
@@ -46,7 +46,7 @@ def test_a_lead_positioning_log_is_as_before_the_sense():
     -260.0334 mm)."""
     a = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0)
     b = simulate_test("vmc-3axis", "X", np.random.default_rng(3), reversal_um=2.0, reversal_sense="lead")
-    assert a.meta == b.meta and "reversal_sense" not in a.meta
+    assert a.meta == b.meta and "added_reversal_sense" not in a.meta
     assert np.array_equal(a.measured, b.measured)
     m = np.asarray(a.measured, float)
     before_head = [-294.9920533688337, -248.2118070584371, -184.74784056035648, -109.08847762364432]
@@ -55,6 +55,23 @@ def test_a_lead_positioning_log_is_as_before_the_sense():
     np.testing.assert_allclose(m[:4], before_head, rtol=0, atol=1e-9)  # (1e-9 mm: last digits, not a 2 um lead)
     np.testing.assert_allclose(m[-4:], before_tail, rtol=0, atol=1e-9)
     assert float(m.sum()) == pytest.approx(-260.0333820482991, abs=1e-8)
+
+
+def test_the_log_names_what_the_options_added_not_the_machines_reversal(tmp_path):
+    """review31 F2: on a machine file whose EXX has ``reversal_um = 2`` the log said ``reversal_um: 0`` (the
+    option's added value) beside a measured B of 2 um. The keys now say ``added_``; the machine's own lost motion
+    is in ``errors`` (its file) and in the readings: B = 2 um (no scatter, no other error: exact to 1e-9 mm)."""
+    m = tmp_path / "m.toml"
+    m.write_text('format = "vmt-machine/1"\nname = "m"\nbase = "vmc-3axis"\nerrors = "none"\n'
+                 '[error.EXX]\nreversal_um = 2.0\n')
+    log = simulate_test(str(m), "X", np.random.default_rng(0), noise_um=0.0)
+    assert "reversal_um" not in log.meta and "drift_um_per_h" not in log.meta
+    assert log.meta["added_reversal_um"] == "0" and log.meta["added_drift_um_per_h"] == "0"
+    assert iso230_2(log).B * 1e3 == pytest.approx(2.0, abs=1e-9)
+    both = simulate_test(str(m), "X", np.random.default_rng(0), noise_um=0.0, reversal_um=3.0,
+                         reversal_sense="lag", drift_um_per_h=1.0, drift_tau_s=60.0)
+    assert (both.meta["added_reversal_um"], both.meta["added_reversal_sense"], both.meta["added_drift_um_per_h"],
+            both.meta["added_drift_tau_s"]) == ("3", "lag", "1", "60")
 
 
 def test_a_sense_without_a_lost_motion_is_refused():
