@@ -689,20 +689,34 @@ class _Columns:
         return {self.header[j]: 10.0 ** -d for j, d in self.decimals.items() if d is not None}
 
 
-def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError) -> None:
+#: The metadata keys whose value changes how vmt reads a log (probe log and positioning log): a key given twice with
+#: two values is refused (review31 F13). Any other key (``machine``, ``Note``, an operator's ``TODO:``) is kept and
+#: ignored as the specs say of unknown keys ("Unknown keys are kept and ignored"): given again with another value,
+#: the first is kept and a warning names both lines (review31e F1: refusing them stopped every command on a shop
+#: macro's repeated ``# Note:`` comment).
+READ_META_KEYS = frozenset({"format", "stylus_r_mm", "kinematic_chain", "unit", "axis", "cycle_kind",
+                            "number_format"})
+
+
+def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError,
+             warnings: list | None = None) -> None:
     """Add the metadata line ``s`` (file line ``ln``, starting with ``#``) to ``meta``: ``# key: value``; a line
-    without ``:`` is a comment. A key given again with another value is refused (``error``, naming the key and
-    both lines: review31 F13; before session 31 the last line won without a word): the spec has one
-    ``# key: value`` per line and a log one value per key. The same value again is the same statement, kept once.
-    The probe-log and positioning-log readers share it."""
+    without ``:`` is a comment. A key of :data:`READ_META_KEYS` given again with another value is refused
+    (``error``, naming the key and both lines: review31 F13; before session 31 the last line won without a word);
+    any other key keeps its first value, and ``warnings`` gets a line naming both. The same value again is the
+    same statement, kept once. The probe-log and positioning-log readers share it."""
     body = s[1:].strip()
     if ":" not in body:
         return
     k, v = body.split(":", 1)
     k, v = k.strip(), v.strip()
     if k in meta and meta[k] != v:
-        raise error(f"{src}: line {ln}: metadata key {k!r} given twice: {_shown(meta[k])} on line "
-                    f"{meta_line[k]}, {_shown(v)} on line {ln}: keep the one that holds")
+        both = f"{_shown(meta[k])} on line {meta_line[k]}, {_shown(v)} on line {ln}"
+        if k in READ_META_KEYS:
+            raise error(f"{src}: line {ln}: metadata key {k!r} given twice: {both}: keep the one that holds")
+        if warnings is not None:
+            warnings.append(f"line {ln}: metadata key {k!r} given twice ({both}): the first kept (vmt does not "
+                            "read it)")
     meta.setdefault(k, v)
     meta_line.setdefault(k, ln)
 
@@ -710,6 +724,11 @@ def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type
 #: What a ``#`` line after the header is (review31 F14): the spec has metadata lines before the header only.
 COMMENT_AFTER_HEADER = ("a '#' line after the header: metadata and comment lines are allowed only before the "
                         "header (line {header}); move it up or delete it")
+
+
+#: First characters of a cell that may start a ``#`` line (``#`` itself, or blanks before it): the cheap test every
+#: row meets before :func:`_comment_row`.
+_COMMENT_STARTS = ("#", " ", "\t")
 
 
 def _comment_row(row: list[str]) -> bool:
@@ -722,11 +741,12 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     ``progress(lines_done, n_lines)`` after each block and when validated (:func:`read_probe_log`)."""
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
+    meta_warnings: list[str] = []
     i, first = 0, None
     for s in lines:
         i += 1
         if s.startswith("#"):
-            add_meta(meta, meta_line, s, i, src)
+            add_meta(meta, meta_line, s, i, src, warnings=meta_warnings)
         elif s.strip():
             first = s
             break
@@ -761,6 +781,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     block: list[list[str]] = []
     block_lines: list[int] = []
     last_row, last_ln, last_end = None, 0, 0
+    hashed: list[tuple[int, str]] = []  # whole rows whose set-up starts with '#' (file line, set-up)
     # the file line where each record starts: a quoted cell may hold ends of line, so a record
     # may span lines (reader.line_num counts the lines read, the header's first)
     ln, end = header_line + 1, header_line
@@ -769,9 +790,11 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
             ln, end = end + 1, header_line - 1 + reader.line_num
             if not row or not "".join(row).strip():  # a blank row (every cell white space)
                 continue
-            if len(row) != width:
-                if _comment_row(row):
+            if row[0][:1] in _COMMENT_STARTS and _comment_row(row):
+                if len(row) != width:
                     raise ProbeLogError(f"{src}: line {ln}: " + COMMENT_AFTER_HEADER.format(header=header_line))
+                hashed.append((ln, row[0].strip()))  # a whole row: a set-up named '#..', or a row commented out
+            if len(row) != width:
                 if unterminated and end == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
@@ -789,7 +812,12 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     cols.add(block, block_lines)
     del block, block_lines
     # the last row ends the file without an end of line: torn, or written by hand?
-    warnings = []
+    warnings = list(meta_warnings)
+    if hashed:  # (review31e F2: a data row commented out with '#' became a one-touch set-up without a word)
+        warnings.append(f"line {hashed[0][0]}: a whole row after the header starts with '#' (set-up {hashed[0][1]!r}"
+                        + (f"; {len(hashed) - 1} more such rows" if len(hashed) > 1 else "")
+                        + "): read as a touch, not a comment ('#' lines are comments only before the header); "
+                          "delete a commented-out row, or name the set-up without '#'")
     if unterminated and last_row is not None and last_end == n_lines:
         w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
         if w is not None:
