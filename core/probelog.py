@@ -88,6 +88,14 @@ TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
 #: to 1e-12, and its scan stops at the first such cell instead of growing with every longer run it meets.
 TEXT_DECIMALS_MAX = 12
 
+#: The metadata line vmt's writer declares its numbers with (session 31, the lead): every number is the shortest text
+#: that reads back as the same double (``repr``), so the digits it shows are not the precision it was written to:
+#: ``160.0`` is exactly 160, not 160 to a tenth of a mm. On reading, the columns of :data:`TEXT_STEP_COLUMNS` of a
+#: log that declares it take the step 0 (exact): before, a log vmt wrote (``vmt import`` of a plan on whole mm, say)
+#: read ``160.0`` as printed to 0.1 mm and its rank tolerance as ``10 x 0.1 mm / L`` (0.01 at L = 100 mm).
+#: A file edited by hand keeps the line only if its numbers still are what it says.
+NUMBER_FORMAT_KEY, NUMBER_FORMAT_EXACT = "number_format", "shortest round-trip"
+
 _MORE_DECIMALS: dict = {}
 #: a number's exponent, read after its letter (the letter found by str.find: on the 1e6-row bench log, whose repr
 #: columns hold a few hundred exponents, counting took 0.22 s with a regular expression's scan for it, 0.11 s so);
@@ -823,7 +831,11 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         if w is not None:
             warnings.append(w)
     line_of_row = cols.line_of_row()
-    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=cols.steps())
+    steps = cols.steps()
+    declared = meta.pop(NUMBER_FORMAT_KEY, None)  # (the file's text, not the log's content: a round trip equal)
+    if declared is not None and declared.strip().lower() == NUMBER_FORMAT_EXACT:  # every number exact as written
+        steps = {k: 0.0 for k in steps}
+    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=steps)
     log = replace(log, unit_steps=_validate(log, lines=line_of_row, warnings=warnings))
     if len(warnings) > len(log.warnings):
         log = replace(log, warnings=tuple(warnings))
@@ -1058,14 +1070,16 @@ def _csv_cell(c) -> str:
     return buf.getvalue()[:-1]
 
 
-def _column_cells(name: str, v: np.ndarray) -> list:
-    """The cells of one column block: text as csv writes it; numbers as ``repr(float)``, NaN empty."""
+def _column_cells(name: str, v: np.ndarray, decimals: int | None = None) -> list:
+    """The cells of one column block: text as csv writes it; numbers as ``repr(float)`` (to ``decimals`` fixed
+    decimals where given: a column read from a file printed to that step), NaN empty."""
     if _is_text_column(name, v):
         cells = ["" if c is None else str(c) for c in v.tolist()]
         if any(ch in "".join(cells) for ch in ',"\r\n'):  # rare: quote the cells that need it
             cells = [_csv_cell(c) for c in cells]
         return cells
-    cells = list(map(repr, v.astype(float).tolist()))
+    fmt = repr if decimals is None else f"{{:.{decimals}f}}".format
+    cells = list(map(fmt, v.astype(float).tolist()))
     for i in np.flatnonzero(np.isnan(v)).tolist():
         cells[i] = ""
     return cells
@@ -1081,6 +1095,13 @@ def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -
     buf = io.StringIO()
     meta = dict(log.meta)
     meta.setdefault("format", FORMAT)
+    # a log read from a file printed to a step: those columns written to the same decimals (the digits say it, as
+    # they did); else every number repr, the digits shown not a precision: declared (NUMBER_FORMAT_EXACT)
+    fixed = {k: int(round(-math.log10(q))) for k, q in log.text_steps.items() if q > 0}
+    if fixed:
+        meta.pop(NUMBER_FORMAT_KEY, None)
+    else:
+        meta[NUMBER_FORMAT_KEY] = NUMBER_FORMAT_EXACT
     meta = {"format": meta.pop("format"), **meta}
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")
@@ -1088,7 +1109,7 @@ def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -
     csv.writer(buf, lineterminator="\n").writerow(list(cols))
     yield buf.getvalue()
     for r0 in range(0, log.n, int(rows_per_block)):
-        cells = [_column_cells(k, v[r0:r0 + int(rows_per_block)]) for k, v in cols.items()]
+        cells = [_column_cells(k, v[r0:r0 + int(rows_per_block)], fixed.get(k)) for k, v in cols.items()]
         yield "\n".join(map(",".join, zip(*cells))) + "\n"
 
 
