@@ -381,7 +381,7 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
     return parse_positioning_log(text, source=src)
 
 
-def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
+def _split_meta(text: str, src: str, warnings: list | None = None) -> tuple[dict[str, str], list[str], int]:
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
     lines = csv_lines(text)
@@ -389,8 +389,8 @@ def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
     meta_line: dict[str, int] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
-        if lines[i].startswith("#"):  # a key given twice with two values is refused (the probe log's rule)
-            add_meta(meta, meta_line, lines[i], i + 1, src, error=PositioningLogError)
+        if lines[i].startswith("#"):  # a key vmt reads given twice with two values is refused (the probe log's rule)
+            add_meta(meta, meta_line, lines[i], i + 1, src, error=PositioningLogError, warnings=warnings)
         i += 1
     if i >= len(lines):
         raise PositioningLogError(f"{src}: no header row (only metadata lines)")
@@ -400,7 +400,8 @@ def _split_meta(text: str, src: str) -> tuple[dict[str, str], list[str], int]:
 def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog:
     """Parse ``positioning-log/1`` text (see :func:`read_positioning_log`)."""
     src = source
-    meta, lines, i = _split_meta(text, src)
+    meta_warnings: list[str] = []
+    meta, lines, i = _split_meta(text, src, meta_warnings)
     fmt = meta.get("format")
     if fmt is None:
         raise PositioningLogError(f"{src}: no '# format: {FORMAT}' metadata line")
@@ -459,10 +460,10 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             last_end = end
     except csv.Error as e:  # in the record that starts at line end + 1
         raise PositioningLogError(f"{src}: line {end + 1}: {e}") from None
-    warnings = ()
+    warnings = tuple(meta_warnings)
     if unterminated and raw and last_end == n_lines:
         w = last_row(raw[-1], len(raw) - 1, line_of_row[-1])
-        warnings = () if w is None else (w,)
+        warnings += () if w is None else (w,)
     col = {h: [r[j] for r in raw] for j, h in enumerate(header)}
 
     def where(r: int) -> str:

@@ -88,6 +88,14 @@ TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
 #: to 1e-12, and its scan stops at the first such cell instead of growing with every longer run it meets.
 TEXT_DECIMALS_MAX = 12
 
+#: The metadata line vmt's writer declares its numbers with (session 31, the lead): every number is the shortest text
+#: that reads back as the same double (``repr``), so the digits it shows are not the precision it was written to:
+#: ``160.0`` is exactly 160, not 160 to a tenth of a mm. On reading, the columns of :data:`TEXT_STEP_COLUMNS` of a
+#: log that declares it take the step 0 (exact): before, a log vmt wrote (``vmt import`` of a plan on whole mm, say)
+#: read ``160.0`` as printed to 0.1 mm and its rank tolerance as ``10 x 0.1 mm / L`` (0.01 at L = 100 mm).
+#: A file edited by hand keeps the line only if its numbers still are what it says.
+NUMBER_FORMAT_KEY, NUMBER_FORMAT_EXACT = "number_format", "shortest round-trip"
+
 _MORE_DECIMALS: dict = {}
 #: a number's exponent, read after its letter (the letter found by str.find: on the 1e6-row bench log, whose repr
 #: columns hold a few hundred exponents, counting took 0.22 s with a regular expression's scan for it, 0.11 s so);
@@ -689,20 +697,34 @@ class _Columns:
         return {self.header[j]: 10.0 ** -d for j, d in self.decimals.items() if d is not None}
 
 
-def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError) -> None:
+#: The metadata keys whose value changes how vmt reads a log (probe log and positioning log): a key given twice with
+#: two values is refused (review31 F13). Any other key (``machine``, ``Note``, an operator's ``TODO:``) is kept and
+#: ignored as the specs say of unknown keys ("Unknown keys are kept and ignored"): given again with another value,
+#: the first is kept and a warning names both lines (review31e F1: refusing them stopped every command on a shop
+#: macro's repeated ``# Note:`` comment).
+READ_META_KEYS = frozenset({"format", "stylus_r_mm", "kinematic_chain", "unit", "axis", "cycle_kind",
+                            "number_format"})
+
+
+def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type = ProbeLogError,
+             warnings: list | None = None) -> None:
     """Add the metadata line ``s`` (file line ``ln``, starting with ``#``) to ``meta``: ``# key: value``; a line
-    without ``:`` is a comment. A key given again with another value is refused (``error``, naming the key and
-    both lines: review31 F13; before session 31 the last line won without a word): the spec has one
-    ``# key: value`` per line and a log one value per key. The same value again is the same statement, kept once.
-    The probe-log and positioning-log readers share it."""
+    without ``:`` is a comment. A key of :data:`READ_META_KEYS` given again with another value is refused
+    (``error``, naming the key and both lines: review31 F13; before session 31 the last line won without a word);
+    any other key keeps its first value, and ``warnings`` gets a line naming both. The same value again is the
+    same statement, kept once. The probe-log and positioning-log readers share it."""
     body = s[1:].strip()
     if ":" not in body:
         return
     k, v = body.split(":", 1)
     k, v = k.strip(), v.strip()
     if k in meta and meta[k] != v:
-        raise error(f"{src}: line {ln}: metadata key {k!r} given twice: {_shown(meta[k])} on line "
-                    f"{meta_line[k]}, {_shown(v)} on line {ln}: keep the one that holds")
+        both = f"{_shown(meta[k])} on line {meta_line[k]}, {_shown(v)} on line {ln}"
+        if k in READ_META_KEYS:
+            raise error(f"{src}: line {ln}: metadata key {k!r} given twice: {both}: keep the one that holds")
+        if warnings is not None:
+            warnings.append(f"line {ln}: metadata key {k!r} given twice ({both}): the first kept (vmt does not "
+                            "read it)")
     meta.setdefault(k, v)
     meta_line.setdefault(k, ln)
 
@@ -710,6 +732,11 @@ def add_meta(meta: dict, meta_line: dict, s: str, ln: int, src: str, error: type
 #: What a ``#`` line after the header is (review31 F14): the spec has metadata lines before the header only.
 COMMENT_AFTER_HEADER = ("a '#' line after the header: metadata and comment lines are allowed only before the "
                         "header (line {header}); move it up or delete it")
+
+
+#: First characters of a cell that may start a ``#`` line (``#`` itself, or blanks before it): the cheap test every
+#: row meets before :func:`_comment_row`.
+_COMMENT_STARTS = ("#", " ", "\t")
 
 
 def _comment_row(row: list[str]) -> bool:
@@ -722,11 +749,12 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     ``progress(lines_done, n_lines)`` after each block and when validated (:func:`read_probe_log`)."""
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
+    meta_warnings: list[str] = []
     i, first = 0, None
     for s in lines:
         i += 1
         if s.startswith("#"):
-            add_meta(meta, meta_line, s, i, src)
+            add_meta(meta, meta_line, s, i, src, warnings=meta_warnings)
         elif s.strip():
             first = s
             break
@@ -761,6 +789,7 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     block: list[list[str]] = []
     block_lines: list[int] = []
     last_row, last_ln, last_end = None, 0, 0
+    hashed: list[tuple[int, str]] = []  # whole rows whose set-up starts with '#' (file line, set-up)
     # the file line where each record starts: a quoted cell may hold ends of line, so a record
     # may span lines (reader.line_num counts the lines read, the header's first)
     ln, end = header_line + 1, header_line
@@ -769,9 +798,11 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
             ln, end = end + 1, header_line - 1 + reader.line_num
             if not row or not "".join(row).strip():  # a blank row (every cell white space)
                 continue
-            if len(row) != width:
-                if _comment_row(row):
+            if row[0][:1] in _COMMENT_STARTS and _comment_row(row):
+                if len(row) != width:
                     raise ProbeLogError(f"{src}: line {ln}: " + COMMENT_AFTER_HEADER.format(header=header_line))
+                hashed.append((ln, row[0].strip()))  # a whole row: a set-up named '#..', or a row commented out
+            if len(row) != width:
                 if unterminated and end == n_lines and len(row) < width:
                     last_row_check(src, header, row, cols.n + len(block), ln, numeric=_spec_numeric)
                 raise ProbeLogError(
@@ -789,13 +820,22 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     cols.add(block, block_lines)
     del block, block_lines
     # the last row ends the file without an end of line: torn, or written by hand?
-    warnings = []
+    warnings = list(meta_warnings)
+    if hashed:  # (review31e F2: a data row commented out with '#' became a one-touch set-up without a word)
+        warnings.append(f"line {hashed[0][0]}: a whole row after the header starts with '#' (set-up {hashed[0][1]!r}"
+                        + (f"; {len(hashed) - 1} more such rows" if len(hashed) > 1 else "")
+                        + "): read as a touch, not a comment ('#' lines are comments only before the header); "
+                          "delete a commented-out row, or name the set-up without '#'")
     if unterminated and last_row is not None and last_end == n_lines:
         w = last_row_check(src, header, last_row, cols.n - 1, last_ln, numeric=_spec_numeric)
         if w is not None:
             warnings.append(w)
     line_of_row = cols.line_of_row()
-    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=cols.steps())
+    steps = cols.steps()
+    declared = meta.pop(NUMBER_FORMAT_KEY, None)  # (the file's text, not the log's content: a round trip equal)
+    if declared is not None and declared.strip().lower() == NUMBER_FORMAT_EXACT:  # every number exact as written
+        steps = {k: 0.0 for k in steps}
+    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=steps)
     log = replace(log, unit_steps=_validate(log, lines=line_of_row, warnings=warnings))
     if len(warnings) > len(log.warnings):
         log = replace(log, warnings=tuple(warnings))
@@ -1030,14 +1070,16 @@ def _csv_cell(c) -> str:
     return buf.getvalue()[:-1]
 
 
-def _column_cells(name: str, v: np.ndarray) -> list:
-    """The cells of one column block: text as csv writes it; numbers as ``repr(float)``, NaN empty."""
+def _column_cells(name: str, v: np.ndarray, decimals: int | None = None) -> list:
+    """The cells of one column block: text as csv writes it; numbers as ``repr(float)`` (to ``decimals`` fixed
+    decimals where given: a column read from a file printed to that step), NaN empty."""
     if _is_text_column(name, v):
         cells = ["" if c is None else str(c) for c in v.tolist()]
         if any(ch in "".join(cells) for ch in ',"\r\n'):  # rare: quote the cells that need it
             cells = [_csv_cell(c) for c in cells]
         return cells
-    cells = list(map(repr, v.astype(float).tolist()))
+    fmt = repr if decimals is None else f"{{:.{decimals}f}}".format
+    cells = list(map(fmt, v.astype(float).tolist()))
     for i in np.flatnonzero(np.isnan(v)).tolist():
         cells[i] = ""
     return cells
@@ -1053,6 +1095,13 @@ def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -
     buf = io.StringIO()
     meta = dict(log.meta)
     meta.setdefault("format", FORMAT)
+    # a log read from a file printed to a step: those columns written to the same decimals (the digits say it, as
+    # they did); else every number repr, the digits shown not a precision: declared (NUMBER_FORMAT_EXACT)
+    fixed = {k: int(round(-math.log10(q))) for k, q in log.text_steps.items() if q > 0}
+    if fixed:
+        meta.pop(NUMBER_FORMAT_KEY, None)
+    else:
+        meta[NUMBER_FORMAT_KEY] = NUMBER_FORMAT_EXACT
     meta = {"format": meta.pop("format"), **meta}
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")
@@ -1060,7 +1109,7 @@ def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -
     csv.writer(buf, lineterminator="\n").writerow(list(cols))
     yield buf.getvalue()
     for r0 in range(0, log.n, int(rows_per_block)):
-        cells = [_column_cells(k, v[r0:r0 + int(rows_per_block)]) for k, v in cols.items()]
+        cells = [_column_cells(k, v[r0:r0 + int(rows_per_block)], fixed.get(k)) for k, v in cols.items()]
         yield "\n".join(map(",".join, zip(*cells))) + "\n"
 
 
