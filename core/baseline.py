@@ -837,9 +837,10 @@ class VolumetricData:
         Position of the row's point along its bar, centred on the bar and
         scaled by the half-length probed (-1..1).
     g_perp : (n,) float
-        The row's component of gravity perpendicular to the bar (``-z_W``
-        less its part along the bar axis): how much a sag of the bar moves
-        the point along this row.
+        The row's component of gravity perpendicular to the bar (gravity
+        in W, :func:`gravity_W`: the machine's ``-z_R`` carried through the
+        set-up's nominal table pose, less its part along the bar axis): how
+        much a sag of the bar moves the point along this row.
     O_R : (n, 3) float
         The point's reading, machine frame, m.
     touch_cols : list
@@ -861,6 +862,40 @@ class VolumetricData:
     g_perp: np.ndarray = field(repr=False)
     O_R: np.ndarray = field(repr=False)
     touch_cols: list = field(repr=False)
+
+
+#: Gravity in the machine's reference frame R, unit: ``-z_R``. An assumption: a vertical machine, whose R has its
+#: z axis up (every machine of :mod:`scenarios.mfb` and the papers'; a horizontal machine would need its own).
+GRAVITY_R = (0.0, 0.0, -1.0)
+#: Whether the volumetric baseline's gravity (``VolumetricData.g_perp``, the ``bar_bending`` columns) is taken into
+#: each measurement's W through its set-up's nominal table pose (``core.kinematics.T_R_W`` at the measurement's
+#: rotary positions). W turns with the table: on the 5-axis plan X3 (A = -90) lies with gravity along -y_W, the
+#: standing bars VXa/b/c (A = -90) along gravity (no sag), DXZ and AXZ (A = -90, C = -+45) at |g_perp| = 0.71.
+#: Off: gravity is ``-z_W`` at every pose (sessions 13-30; review31c F4). A machine without rotary axes reads the
+#: same either way (W does not turn: the same doubles, session 31).
+BAR_GRAVITY_THROUGH_TABLE = True
+
+
+def gravity_W(chain: str, rot_rad=(), rotary_points_R_m=None) -> np.ndarray:
+    """(3,) gravity (unit) in the workpiece frame W at the rotary positions ``rot_rad`` (chain's rotary order, rad).
+
+    ``R_RW^T GRAVITY_R`` with ``R_RW`` the nominal orientation of W in R
+    (:func:`core.kinematics.T_R_W`, no errors: a table tilted by its
+    angular errors turns gravity by urad, which moves a few-um sag by
+    picometres). A chain without rotary axes (or with
+    :data:`BAR_GRAVITY_THROUGH_TABLE` off): ``GRAVITY_R`` itself.
+    """
+    from . import kinematics as kin
+    from .chain import parse_chain
+
+    g = np.array(GRAVITY_R, float)
+    ch = parse_chain(chain)
+    if not BAR_GRAVITY_THROUGH_TABLE or not ch.rotary_axes:
+        return g
+    rot = np.asarray(rot_rad, float).reshape(1, -1)
+    geom = kin.ChainGeometry.of(ch, (0.0, 0.0, 0.0), rotary_points_R_m)
+    R = kin.T_R_W(geom, np.zeros((1, 3)), rot)[0, :3, :3]
+    return R.T @ g
 
 
 VOLUMETRIC_MODES = ("x (W)", "y (W)", "z (W)")
@@ -926,7 +961,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
         T = np.asarray(m.T_W_A, float)
         R = T[:3, :3]
         x_A = R[:, 0]
-        g = np.array([0.0, 0.0, -1.0])
+        g = gravity_W(chain, m.rot_rad, rotary_points_R_m)
         g_perp = g - (g @ x_A) * x_A
         sA = np.asarray(m.O_A, float)[:, 0]
         mid, half = (sA.max() + sA.min()) / 2, max(np.ptp(sA) / 2, 1e-9)
