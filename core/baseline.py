@@ -1014,8 +1014,8 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     n = len(sel)
     data = VolumetricData(d, comp, np.array(mi)[sel], tuple(names), tuple(places),
                           tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
-                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(sb, float)[sel], np.array(gp)[sel],
-                          np.array(O)[sel], touch)
+                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(sb, float)[sel],
+                          np.array(gp)[sel], np.array(O)[sel], touch)
     W = _point_whitening(touch, n, np.array(point)[sel])
     modes = np.eye(3)[comp]
     allm = (0, 1, 2)

@@ -880,6 +880,8 @@ def bar_gravity_A(T_W_A, T_R_W) -> np.ndarray:
     g_A = R.T @ np.asarray(MFB_GRAVITY_R, float)
     g_A[0] = 0.0
     return g_A
+
+
 #: Time between two measurements of the MFB plan, s (a bar is re-set by hand).
 MFB_MEASUREMENT_S = 600.0
 
