@@ -934,10 +934,16 @@ class VolumetricData:
     s : (n,) float
         Position of the row's point along its bar, centred on the bar and
         scaled by the half-length probed (-1..1).
+    s_bar : (n,) float
+        Position of the row's point along the whole bar, centred on the
+        bar's middle and scaled by its half-length between the end holes
+        (-1..1, :data:`core.mfb.MFB`'s holes; :data:`BAR_BENDING_ABOUT_BAR_MIDDLE`):
+        where the bar's sag is symmetric, whatever holes were probed.
     g_perp : (n,) float
-        The row's component of gravity perpendicular to the bar (``-z_W``
-        less its part along the bar axis): how much a sag of the bar moves
-        the point along this row.
+        The row's component of gravity perpendicular to the bar (gravity
+        in W, :func:`gravity_W`: the machine's ``-z_R`` carried through the
+        set-up's nominal table pose, less its part along the bar axis): how
+        much a sag of the bar moves the point along this row.
     O_R : (n, 3) float
         The point's reading, machine frame, m.
     touch_cols : list
@@ -956,9 +962,53 @@ class VolumetricData:
     stylus: np.ndarray = field(repr=False)
     t_s: np.ndarray = field(repr=False)
     s: np.ndarray = field(repr=False)
+    s_bar: np.ndarray = field(repr=False)
     g_perp: np.ndarray = field(repr=False)
     O_R: np.ndarray = field(repr=False)
     touch_cols: list = field(repr=False)
+
+
+#: Gravity in the machine's reference frame R, unit: ``-z_R``. An assumption: a vertical machine, whose R has its
+#: z axis up (every machine of :mod:`scenarios.mfb` and the papers'; a horizontal machine would need its own).
+GRAVITY_R = (0.0, 0.0, -1.0)
+#: Whether the volumetric baseline's gravity (``VolumetricData.g_perp``, the ``bar_bending`` columns) is taken into
+#: each measurement's W through its set-up's nominal table pose (``core.kinematics.T_R_W`` at the measurement's
+#: rotary positions). W turns with the table: on the 5-axis plan X3 (A = -90) lies with gravity along -y_W, the
+#: standing bars VXa/b/c (A = -90) along gravity (no sag), DXZ and AXZ (A = -90, C = -+45) at |g_perp| = 0.71.
+#: Off: gravity is ``-z_W`` at every pose (sessions 13-30; review31c F4). A machine without rotary axes reads the
+#: same either way (W does not turn: the same doubles, session 31).
+BAR_GRAVITY_THROUGH_TABLE = True
+#: Whether the ``bar_bending`` columns take the position along the bar from the bar's middle (hole 6.5 of the 12 of
+#: :data:`core.mfb.MFB`, by the holes' labels: ``VolumetricData.s_bar``), where a bar on symmetric supports sags
+#: symmetrically, rather than from the middle of the holes a measurement probed (``s``). Most measurements probe
+#: part of the bar (3-axis: holes 1-8 or 1-7 on 14 of 17; 5-axis: e.g. 7-12, 5-9): a sag about the bar's middle is
+#: then not the even quartic of the probed holes. Session 31 (bend31): the simulator's hidden sag (about the bar's
+#: middle, scenarios.hidden) fitted from its effect alone by the bending columns read 1.15 of 3.90 um (mfb-3axis,
+#: seed 4001) and 0.77 of 3.53 um (mfb-5axis, seed 4000) about the probed holes' middle, 3.90 and 3.54 about the
+#: bar's. Off: about the probed holes (sessions 13-30). The ``along_bar`` covariate keeps ``s``.
+BAR_BENDING_ABOUT_BAR_MIDDLE = True
+
+
+def gravity_W(chain: str, rot_rad=(), rotary_points_R_m=None) -> np.ndarray:
+    """(3,) gravity (unit) in the workpiece frame W at the rotary positions ``rot_rad`` (chain's rotary order, rad).
+
+    ``R_RW^T GRAVITY_R`` with ``R_RW`` the nominal orientation of W in R
+    (:func:`core.kinematics.T_R_W`, no errors: a table tilted by its
+    angular errors turns gravity by urad, which moves a few-um sag by
+    picometres). A chain without rotary axes (or with
+    :data:`BAR_GRAVITY_THROUGH_TABLE` off): ``GRAVITY_R`` itself.
+    """
+    from . import kinematics as kin
+    from .chain import parse_chain
+
+    g = np.array(GRAVITY_R, float)
+    ch = parse_chain(chain)
+    if not BAR_GRAVITY_THROUGH_TABLE or not ch.rotary_axes:
+        return g
+    rot = np.asarray(rot_rad, float).reshape(1, -1)
+    geom = kin.ChainGeometry.of(ch, (0.0, 0.0, 0.0), rotary_points_R_m)
+    R = kin.T_R_W(geom, np.zeros((1, 3)), rot)[0, :3, :3]
+    return R.T @ g
 
 
 VOLUMETRIC_MODES = ("x (W)", "y (W)", "z (W)")
@@ -1017,14 +1067,17 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     names = [m.name for m in meas]
     places = list(dict.fromkeys(m.placement for m in meas))
     styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
-    comp, mi, pl, st, t_s, s, gp, O, touch, fold, point = [], [], [], [], [], [], [], [], [], [], []
+    comp, mi, pl, st, t_s, s, sb, gp, O, touch, fold, point = [], [], [], [], [], [], [], [], [], [], [], []
+    from .mfb import MFB
+
+    half_bar = (MFB.n_holes - 1) / 2
     row = 0
     for i, m in enumerate(meas):
         k = len(m.holes)
         T = np.asarray(m.T_W_A, float)
         R = T[:3, :3]
         x_A = R[:, 0]
-        g = np.array([0.0, 0.0, -1.0])
+        g = gravity_W(chain, m.rot_rad, rotary_points_R_m)
         g_perp = g - (g @ x_A) * x_A
         sA = np.asarray(m.O_A, float)[:, 0]
         mid, half = (sA.max() + sA.min()) / 2, max(np.ptp(sA) / 2, 1e-9)
@@ -1038,6 +1091,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
                 st.append(styli.index(J))
                 t_s.append(t_i)
                 s.append((sA[p] - mid) / half)
+                sb.append((int(m.holes[p]) - 1 - half_bar) / half_bar if BAR_BENDING_ABOUT_BAR_MIDDLE else s[-1])
                 gp.append(g_perp[c])
                 O.append(np.asarray(m.O_R, float)[p])
                 fold.append(int(m.holes[p]) % VOLUMETRIC_FOLDS)
@@ -1058,8 +1112,8 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     n = len(sel)
     data = VolumetricData(d, comp, np.array(mi)[sel], tuple(names), tuple(places),
                           tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
-                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(gp)[sel],
-                          np.array(O)[sel], touch)
+                          np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(sb, float)[sel],
+                          np.array(gp)[sel], np.array(O)[sel], touch)
     W = _point_whitening(touch, n, np.array(point)[sel])
     modes = np.eye(3)[comp]
     allm = (0, 1, 2)

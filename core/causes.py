@@ -2423,15 +2423,18 @@ def bending_bar_scans(bl):
     The points of interest then sit lower (along gravity's component
     perpendicular to the bar) by a smooth even function of their position
     along the bar: ``w(s) = c_2 P_2(s) + c_4 P_4(s)`` (Legendre, s = -1..1
-    over the holes probed), the same for every placement of the bar at the
-    same inclination. A standing bar does not sag. Parameters: the sag of
-    the middle relative to the ends (um, positive down).
+    over the bar's end holes, about its middle:
+    ``VolumetricData.s_bar``, core.baseline.BAR_BENDING_ABOUT_BAR_MIDDLE),
+    the same for every placement of the bar at the same inclination to
+    gravity (the machine's -z carried through the set-up's table pose:
+    core.baseline.gravity_W). A standing bar does not sag. Parameters: the
+    sag of the middle relative to the ends (um, positive down).
     """
     d = bl.data
     if np.max(np.abs(d.g_perp)) < 1e-6:
         return [], 1.0
-    P2 = (3 * d.s ** 2 - 1) / 2
-    P4 = (35 * d.s ** 4 - 30 * d.s ** 2 + 3) / 8
+    P2 = (3 * d.s_bar ** 2 - 1) / 2
+    P4 = (35 * d.s_bar ** 4 - 30 * d.s_bar ** 2 + 3) / 8
     return [_one(np.column_stack([d.g_perp * P2, d.g_perp * P4]), ["P2", "P4"], {}, "along_bar")], 1.0
 
 

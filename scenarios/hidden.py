@@ -861,6 +861,27 @@ def blind_outcome(module, effect: str, seed: int, generator: str = "", **discove
 # the volumetric MFB model: effects hidden between and in the placements
 # ---------------------------------------------------------------------------
 MFB_HIDDEN = ("none", "thermal_drift", "bar_bending", "lobing_per_stylus")
+#: Gravity in the simulated machine's reference frame R (unit): ``-z_R``, every machine of scenarios.mfb being
+#: vertical (R's z up). The bar's sag follows it wherever the table turns W (review31c F4, session 31).
+MFB_GRAVITY_R = (0.0, 0.0, -1.0)
+
+
+def bar_gravity_A(T_W_A, T_R_W) -> np.ndarray:
+    """(3,) gravity in the bar frame A without its part along the bar (A's x): the direction a sag moves the bar.
+
+    ``T_R_W`` the table's pose in the machine frame at the set-up's rotary
+    positions (``sim.machine.Machine.T_R_W_nominal``), ``T_W_A`` the bar's
+    placement on the table: the bar's pose in R is ``T_R_W T_W_A``, so
+    gravity in A is ``(R_RW R_WA)^T MFB_GRAVITY_R``. Its part along the
+    bar compresses the bar (nm): left out. A bar standing along gravity does
+    not sag (zero); a bar lying across it sags its full amount (unit).
+    """
+    R = np.asarray(T_R_W, float)[:3, :3] @ np.asarray(T_W_A, float)[:3, :3]
+    g_A = R.T @ np.asarray(MFB_GRAVITY_R, float)
+    g_A[0] = 0.0
+    return g_A
+
+
 #: Time between two measurements of the MFB plan, s (a bar is re-set by hand).
 MFB_MEASUREMENT_S = 600.0
 
@@ -873,7 +894,9 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
     measurement on the machine as it is at that time; ``bar_bending``: the
     bar sags between its supports by 1-4 um at mid-span (its points move
     along gravity's component perpendicular to the bar, a quartic of the
-    position along it), standing bars do not; ``lobing_per_stylus``: each
+    position along it; gravity is the machine's -z, carried into the bar
+    through the table's pose at the set-up's rotary positions:
+    :func:`bar_gravity_A`), standing bars do not; ``lobing_per_stylus``: each
     stylus its own 2- and 3-lobe pre-travel of 0.5-1.5 um.
 
     Returns
@@ -911,9 +934,8 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
                 errs[sym] = errs[sym] + f if sym in errs else f
             machine = machine.with_errors(errs)
         elif cause == "bar_bending":
-            R = np.asarray(spec.T_W_A, float)[:3, :3]
-            g_A = R.T @ np.array([0.0, 0.0, -1.0])
-            g_A[0] = 0.0  # the part along the bar compresses it, negligibly
+            rot = np.asarray(spec.rot_rad, float).reshape(1, -1) if len(spec.rot_rad) else None
+            g_A = bar_gravity_A(spec.T_W_A, machine.T_R_W_nominal(rot)[0])
             E = np.asarray(art.info["E_MFB_m"], float)
             s = np.linspace(-1, 1, len(E))
             bend = sag * ((1 - s ** 2) ** 2 - np.mean((1 - s ** 2) ** 2))
