@@ -7223,11 +7223,8 @@ def _magnitudes(cause, bl, tm: Term, Qo: np.ndarray, rows, wide: list | None = N
         nx = X.shape[1]
         Xa = np.hstack([X, Sp])
         cov_all = s2 * np.linalg.pinv(Xa.T @ Xa + np.pad(pen[1], ((nx, 0),) * 2), rcond=1e-12, hermitian=True)[:nx, :nx]
-    else:
-        try:
-            cov_all = s2 * np.linalg.inv(X.T @ X)
-        except np.linalg.LinAlgError:
-            cov_all = s2 * np.linalg.pinv(X.T @ X)
+    else:  # conditioning checked (review31d F6): inv where well conditioned, else X's own SVD at lsq's rank tolerance
+        cov_all = s2 * lsq_mod.normal_inverse(X)
     vec0 = np.concatenate([coef, [tm.info[nm] for nm in nl]])  # label coefficients, then nl
 
     def f(vec):

@@ -659,6 +659,49 @@ def remove_span(v, B, rcond: float = 1e-12) -> np.ndarray:
     return v - Q @ (Q.T @ v)
 
 
+def normal_inverse(X, rank_tol: float = RANK_TOL) -> np.ndarray:
+    """``(X^T X)^-1`` for a covariance ``s^2 (X^T X)^-1``, its conditioning checked (review31d F6).
+
+    Where the column-equilibrated normal matrix's condition number is at most
+    ``1 / rank_tol`` (:data:`RANK_TOL`: an eigenvalue ratio of 1e-12, 1e-6 in
+    singular values): ``np.linalg.inv(X^T X)``, the very doubles of the plain
+    inverse. Above it (nearly collinear columns, where inverting the normal
+    matrix squares X's conditioning, and ``inv`` raises only on an exactly
+    singular one): from X's own SVD, columns equilibrated, each singular
+    value below ``sqrt(rank_tol)`` of the largest counted at that floor. A
+    direction the data barely see keeps the widest variance the tolerance
+    allows, never the zero a truncated ``pinv`` gives it (a combination
+    nobody measured reported with a small U95); a zero column is such a
+    direction.
+
+    Parameters
+    ----------
+    X : (n, k) float
+        The design (columns the parameters').
+    rank_tol : float
+        Eigenvalue ratio of the equilibrated normal matrix.
+
+    Returns
+    -------
+    (k, k) float
+    """
+    X = np.asarray(X, float)
+    if X.ndim != 2 or not np.all(np.isfinite(X)):
+        raise ConfigError(f"normal_inverse: X must be a finite (n, k) array, got shape {X.shape}")
+    G = X.T @ X
+    d = np.sqrt(np.diag(G))
+    if d.size and np.all(d > 0) and np.linalg.cond(G / np.outer(d, d)) * rank_tol <= 1.0:
+        return np.linalg.inv(G)
+    dd = np.where(d > 0, d, 1.0)
+    _, s, Vt = np.linalg.svd(X / dd, full_matrices=False)
+    if s.size < X.shape[1]:  # fewer rows than columns: the missing directions are unseen
+        s = np.concatenate([s, np.zeros(X.shape[1] - s.size)])
+        Vt = np.linalg.svd(X / dd, full_matrices=True)[2]
+    floor = np.sqrt(rank_tol) * max(float(s.max(initial=0.0)), 1.0)
+    W = Vt.T / np.maximum(s, floor)
+    return (W @ W.T) / np.outer(dd, dd)
+
+
 # ---------------------------------------------------------------------------
 # block designs: one indicator column per row, eliminated (long logs)
 # ---------------------------------------------------------------------------

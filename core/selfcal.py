@@ -134,7 +134,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .exceptions import ConfigError, IdentifiabilityError, counted
-from .lsq import LinearEstimator, column_norms, remove_span, solve
+from .lsq import LinearEstimator, column_norms, normal_inverse, remove_span, solve
 from .touches import Touches
 from .units import DEG, MM, UM
 
@@ -1578,7 +1578,7 @@ def blind_lobes(design: SelfCalDesign, est: LinearEstimator, touches: Touches,
         # a value's largest change over unit amplitudes in that span is sqrt(a (M^T M)^-1 a), a its row of TV.
         # m per m of lobe = um per um; rad per m = urad per um: the numbers as they stand
         M = np.linalg.solve(R, V)
-        Gi = np.linalg.inv(M.T @ M)
+        Gi = normal_inverse(M)  # (M^T M)^-1, its conditioning checked (review31d F6)
         big = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", TV, Gi, TV), 0.0))
         blocks = tuple(b for b, v_ in sorted(share.items(), key=lambda kv: -kv[1]) if v_ >= LOBE_ALIAS_SHARE)
         out.append(BlindLobe(k=int(k), angle_deg=float(np.degrees(np.arcsin(sin_min))),

@@ -76,9 +76,6 @@ class SelfCalUncertainty:
     lo, hi : (n_params,) float or None
         Monte Carlo 95 % coverage interval of the estimation error
         (estimate minus truth), m / rad.
-    u_se : (n_params,) float or None
-        Sampling standard error of the Monte Carlo ``u`` (about
-        ``u / sqrt(2 (runs - 1))``).
     u_probe_m : float
         Probing standard uncertainty used, m.
     G_form_u : (N_w,) float
@@ -100,7 +97,6 @@ class SelfCalUncertainty:
     runs: int
     lo: np.ndarray | None
     hi: np.ndarray | None
-    u_se: np.ndarray | None
     u_probe_m: float
     G_form_u: np.ndarray
 
@@ -151,7 +147,7 @@ def linear_uncertainty_touches(touches: Touches, grid: Grid, u_probe_m: float = 
     Cg = est.covariance_of(des.slices["G"], u_probe_m)
     P = form_projector(des)
     uf = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", P, Cg, P), 0))
-    return SelfCalUncertainty(design=des, u=u, U95=K * u, method="linear", runs=0, lo=None, hi=None, u_se=None,
+    return SelfCalUncertainty(design=des, u=u, U95=K * u, method="linear", runs=0, lo=None, hi=None,
                        u_probe_m=float(u_probe_m), G_form_u=uf)
 
 
@@ -211,7 +207,7 @@ def summarise_mc(des: SelfCalDesign, err: np.ndarray, u_probe_m: float) -> SelfC
     lo, hi = np.quantile(err, [0.025, 0.975], axis=0)
     uf = (err[:, des.slices["G"]] @ form_projector(des).T).std(axis=0, ddof=1)
     return SelfCalUncertainty(design=des, u=u, U95=K * u, method="monte-carlo", runs=runs, lo=lo, hi=hi,
-                       u_se=u / np.sqrt(2.0 * (runs - 1)), u_probe_m=float(u_probe_m), G_form_u=uf)
+                       u_probe_m=float(u_probe_m), G_form_u=uf)
 
 
 def monte_carlo(w_W, wn_W, c_deg, grid: Grid, u_probe_m: float = U_PROBE_M, *, runs: int = 1000,

@@ -276,28 +276,21 @@ def _geom(chain: str, J_m, rotary_points_R_m) -> ChainGeometry:
 
 
 def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """(len(u), len(nodes)) weights of the C2 (not-a-knot) cubic spline through the nodes.
+    """(len(u), len(nodes)) weights of the C2 cubic spline through the nodes.
 
-    Linear interpolation for 2-3 nodes; constant for one node. Beyond the
-    end nodes (up to :data:`NODE_MARGIN_M`, checked by the caller) the
-    spline continues along its end tangent (C1), as ``sim``'s
-    ``SplineTable`` does, never as a runaway cubic.
+    Not-a-knot end conditions for 4 nodes or more, natural for 2-3 (for 2
+    the line through them), as ``sim``'s ``SplineTable`` fits; constant for
+    one node. Beyond the end nodes (up to :data:`NODE_MARGIN_M`, checked by
+    the caller) the spline continues along its end tangent (C1), as
+    ``SplineTable`` does, never as a runaway cubic. (Before review31d F11,
+    2-3 nodes were interpolated linearly and held beyond the ends, unlike
+    this docstring, ``SplineTable`` and the vmt-comp/1 JSON's rule.)
     """
     nodes = np.asarray(nodes, float)
     u = np.asarray(u, float)
     k = len(nodes)
     if k == 1:
         return np.ones((len(u), 1))
-    if k < 4:
-        W = np.zeros((len(u), k))
-        for j in range(k):
-            e = np.zeros(k)
-            e[j] = 1.0
-            W[:, j] = np.interp(u, nodes, e, left=np.nan, right=np.nan)
-        lo, hi = u < nodes[0], u > nodes[-1]
-        W[lo] = np.eye(k)[0]
-        W[hi] = np.eye(k)[-1]
-        return W
     cs, d0, d1 = _basis(tuple(nodes.tolist()))
     W = cs(np.clip(u, nodes[0], nodes[-1]))
     lo, hi = u < nodes[0], u > nodes[-1]
@@ -309,9 +302,10 @@ def spline_weights(nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 @functools.lru_cache(maxsize=64)
 def _basis(nodes: tuple):
-    """The cardinal C2 (not-a-knot) splines of a node tuple and their end slopes (cached: pure)."""
+    """The cardinal C2 splines of a node tuple (not-a-knot; natural below 4 nodes) and their end slopes (cached:
+    pure)."""
     x = np.asarray(nodes)
-    cs = CubicSpline(x, np.eye(len(x)), bc_type="not-a-knot")
+    cs = CubicSpline(x, np.eye(len(x)), bc_type="not-a-knot" if len(x) >= 4 else "natural")
     d = cs.derivative()
     return cs, d(x[0]), d(x[-1])
 

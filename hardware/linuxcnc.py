@@ -562,7 +562,7 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
         machine's stroke: a line is added at each end beyond the table's end
         nodes, its value the table's continuation there (:func:`core.volumetric.
         spline_weights`: along the end tangent, as the ``vmt-comp/1`` JSON
-        says; held for a table of fewer than 4 nodes). LinuxCNC interpolates
+        says, for any number of nodes). LinuxCNC interpolates
         linearly between lines, so the file then gives the JSON's
         extrapolation exactly; without the lines it holds the end trims
         beyond the file (motion.c's sentinels, ``compute_screw_comp()``), and

@@ -499,6 +499,20 @@ def _table_poses(t, machine) -> list | None:
     return out
 
 
+def _artefact_mesh(art):
+    """The artefact's display mesh (its frame A), or None where there is none to draw.
+
+    The expected cases, tested here rather than caught: no artefact (None), an object without a ``mesh``
+    method, an artefact with no solids (an empty mesh). Anything else an artefact's mesh raises (a
+    TypeError, a wrong transform) is a fault and propagates: before, ``except Exception: pass`` hid it and
+    the recording silently lacked the artefact (review31d F7).
+    """
+    if art is None or not callable(getattr(art, "mesh", None)):
+        return None
+    mesh = art.mesh()
+    return mesh if len(mesh.vertices) and len(mesh.faces) else None
+
+
 def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=None) -> None:
     """The demo's recording: artefact, touches, error grid, bodies, workpiece, C axis, error motions.
 
@@ -508,12 +522,10 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
     (review30d F2: the C = 75/130/210 touches were drawn against the part at its C = 0 pose, and the
     part 30 mm too low); without it the touches are static in R and the table is not placed.
     """
-    try:
-        mesh = art.mesh()
+    mesh = _artefact_mesh(art)
+    if mesh is not None:  # a display mesh is a nicety: none without an artefact, never an error hidden
         record.log_mesh(rec, record.ARTEFACT, np.asarray(mesh.vertices), np.asarray(mesh.faces),
                         T_parent_child=art.T_W_A)
-    except Exception:  # a display mesh is a nicety, never a reason to fail
-        pass
     dq = t.dq_m / UM
     poses = _table_poses(t, machine)
     if poses is None:
@@ -638,11 +650,10 @@ def _log_machine_bodies(rec, record, t, art=None) -> None:
     import trimesh
 
     z_top = float(np.min(t.pn_R[:, 2])) - 0.013  # table surface below the probed level
-    try:
+    mesh = _artefact_mesh(art)
+    if mesh is not None:  # else (no artefact, or one without solids): the fallback
         TA = np.asarray(art.T_W_A, float)
-        z_top = float(np.min(np.asarray(art.mesh().vertices) @ TA[2, :3] + TA[2, 3]))
-    except Exception:  # no artefact or no mesh: the fallback
-        pass
+        z_top = float(np.min(np.asarray(mesh.vertices) @ TA[2, :3] + TA[2, 3]))
     table = trimesh.creation.cylinder(radius=0.17, height=0.04,
                                       transform=trimesh.transformations.translation_matrix((0, 0, z_top - 0.02)))
     record.log_mesh(rec, record.TABLE, np.asarray(table.vertices), np.asarray(table.faces), color=(120, 130, 150))

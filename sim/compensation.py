@@ -191,15 +191,13 @@ class AxisCompensation(_Wrapper):
 def _table_function(x, v):
     """The error table as a function of the axis position, interpolated as
     :func:`core.volumetric.spline_weights` does (C2 not-a-knot for 4 nodes or
-    more, continued along the end tangents; linear, ends held, below 4)."""
+    more, natural for 2-3, as SplineTable; continued along the end tangents)."""
     from scipy.interpolate import CubicSpline
 
     x, v = np.asarray(x, float), np.asarray(v, float)
     if len(x) == 1:
         return lambda u: np.full(np.shape(u), v[0])
-    if len(x) < 4:
-        return lambda u: np.interp(u, x, v)
-    cs = CubicSpline(x, v, bc_type="not-a-knot")
+    cs = CubicSpline(x, v, bc_type="not-a-knot" if len(x) >= 4 else "natural")
     d0, d1 = cs(x[0], 1), cs(x[-1], 1)
 
     def f(u):
@@ -219,7 +217,7 @@ class ErrorModel:
         ISO 10791 chain the model is for.
     tables : mapping symbol -> ((k,) nodes m, (k,) values m or rad)
         Motion errors, interpolated as :func:`core.volumetric.spline_weights`
-        does (C2 not-a-knot, end tangents beyond the end nodes).
+        does (C2 not-a-knot, natural below 4 nodes, end tangents beyond the end nodes).
     constants : mapping symbol -> float
         Squarenesses (rad).
     rotary_points_R_m : mapping axis -> (3,) float

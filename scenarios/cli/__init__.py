@@ -19,30 +19,9 @@ import functools
 import importlib
 import os
 
-#: The environment variables that size the BLAS/OpenMP thread pools (OpenBLAS
-#: bundled with numpy and scipy, MKL, OpenMP), read once when the library loads.
-THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-def one_blas_thread(environ=os.environ) -> bool:
-    """Ask for one BLAS thread unless the user chose a count; True when this set it.
-
-    vmt's linear algebra is small and dense (discover's factorisations, the
-    Monte Carlo, the identification's blocks): on a shared 2-core machine a
-    threaded BLAS runs it 3-64x slower (issue 19). This must run before numpy
-    is first imported, so it runs when this package is imported (the ``vmt``
-    console script and ``python -m scenarios.cli`` both import it first).
-    Setting any of :data:`THREAD_VARS` (``OMP_NUM_THREADS=2 vmt bench``)
-    overrides the default: then none is touched.
-    """
-    if any(environ.get(v, "").strip() for v in THREAD_VARS):
-        return False
-    for v in THREAD_VARS:
-        environ[v] = "1"
-    return True
-
-
-one_blas_thread()
+# The one-BLAS-thread default (issue 19) is set when the ``scenarios`` package is imported, before this one:
+# every entry point, the studies' ``python -m scenarios.<study>`` too (review31d F14). Re-exported here.
+from scenarios import THREAD_VARS, one_blas_thread  # noqa: F401
 
 #: glibc's own environment variables for the allocator settings
 #: :func:`keep_freed_memory` makes (read by glibc when the process starts).
