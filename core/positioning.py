@@ -832,7 +832,10 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     invalid readings into the figures: such a file is a positioning log and
     needs its ``# format:`` line). Directions: ``+ - up down fwd bwd forward
     backward pos neg +1 -1 1``. Lines starting with ``#`` are comments
-    (``# key: value`` lines become metadata). The unit (``mm`` or ``deg``):
+    (``# key: value`` lines become metadata), anywhere in the file, unlike a
+    positioning log's (before its header only); a key given twice with two
+    values is refused, as in a positioning log (a ``# unit: mm`` below a
+    ``# unit: deg`` read the table in mm before session 31). The unit (``mm`` or ``deg``):
     the one in the target or measured column's name (``target_deg``), else
     ``unit``, else a ``# unit:`` comment line, else mm; a name in another
     unit than ``unit`` or the ``# unit:`` line, or two names in two units,
@@ -842,16 +845,14 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
     meta: dict[str, str] = {}
+    meta_line: dict[str, int] = {}
     rows: list[tuple[int, list[str]]] = []
     for ln, line in enumerate(csv_lines(text), start=1):
         s = line.strip()
         if not s:
             continue
-        if s.startswith("#"):
-            body = s[1:].strip()
-            if ":" in body:
-                k, v = body.split(":", 1)
-                meta[k.strip()] = v.strip()
+        if s.startswith("#"):   # anywhere in a table (a comment between blocks); a key twice with two values
+            add_meta(meta, meta_line, s, ln, src, error=PositioningLogError)   # is refused (warn31: the last won)
             continue
         if "," in s or ";" in s:
             cells = [c.strip() for c in re.split(r"[,;]", s)]

@@ -21,10 +21,11 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     """
     from core.atomic import json_safe, json_text, write_text_atomic
 
+    warned: list[str] = []   # the reader's warnings (said on stderr by scenarios.cli.reading), for the JSON
     if _is_positioning_log(log_path):
-        d = _discover_positioning(log_path, report, grid_mm)
+        d = _discover_positioning(log_path, report, grid_mm, warned=warned)
     else:
-        d = _discover_probe_log(log_path, grid_mm, progress)
+        d = _discover_probe_log(log_path, grid_mm, progress, warned=warned)
     rep = dict(d.to_report())
     for k in ("workpiece", "findings"):
         if k in rep:
@@ -36,6 +37,7 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     if nd is not None:
         rep["not_determined"] = nd
     rep["log"] = str(log_path)
+    rep["input_warnings"] = warned
     text = json_text(rep, json_out)
     if report:
         from scenarios.reports import discovery_report
@@ -128,15 +130,19 @@ def lobes_not_determined(d) -> dict | None:
             "checked_lobe_orders": list(LOBE_ORDERS), "what": what}
 
 
-def _discover_probe_log(log_path, grid_mm, progress):
-    """The planar self-calibration baseline of a probe-log/1 campaign, then the search."""
+def _discover_probe_log(log_path, grid_mm, progress, warned: list | None = None):
+    """The planar self-calibration baseline of a probe-log/1 campaign, then the search
+    (the reader's warnings said on stderr and added to ``warned``)."""
     from core.baseline import extra_columns
     from core.discover import discover
-    from core.probelog import read_probe_log
     from core.scope import check_planar_scope
     from core.touches import from_log
 
-    log = read_probe_log(log_path)
+    from scenarios.cli.reading import read_probe
+
+    log = read_probe(log_path, "discover", bar=progress)
+    if warned is not None:
+        warned.extend(log.warnings)
     check_planar_scope(log, "discover")
     t = from_log(log)
     chain, extra = log.meta.get("kinematic_chain"), extra_columns(log, t.row)
@@ -159,13 +165,12 @@ def _is_positioning_log(path) -> bool:
     return first.strip().replace(" ", "") == f"#format:{FORMAT}"
 
 
-def _discover_positioning(log_path, report, grid_mm):
+def _discover_positioning(log_path, report, grid_mm, warned: list | None = None):
     """Discovery on an ISO 230-2 test: the standard's model (a mean per target and direction,
     the replicates' repeatability) as the baseline, then drift, warm-up, outliers (core.baseline)."""
     from core.baseline import positioning_from_log
     from core.discover import discover_baseline
     from core.exceptions import ConfigError
-    from core.positioning import read_positioning_log
 
     if grid_mm is not None:
         raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
@@ -173,4 +178,9 @@ def _discover_positioning(log_path, report, grid_mm):
     if report:
         raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
                           "vmt iso230-2 --report draws the test)")
-    return discover_baseline(positioning_from_log(read_positioning_log(log_path)))
+    from scenarios.cli.reading import read_positioning
+
+    log = read_positioning(log_path, "discover")
+    if warned is not None:
+        warned.extend(log.warnings)
+    return discover_baseline(positioning_from_log(log))

@@ -88,6 +88,7 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["log"] = str(path)
     rep["machine"] = log.meta.get("machine", "")
     rep["instrument"] = log.meta.get("instrument", "")
+    rep["input_warnings"] = list(log.warnings)   # the reader's own (also among "warnings", with the test's)
     if rep.get("cycle_kind") == "pilgrim":
         rep["cycle_note"] = PILGRIM_NOTE
     budget = None

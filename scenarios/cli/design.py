@@ -58,12 +58,12 @@ def run(args) -> int:
 
     from core.design import optimise_angles, targets_from_log
     from core.exceptions import ConfigError, IdentifiabilityError
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from core.atomic import write_json_atomic
     from scenarios.cli.options import parse_grid
     from scenarios.parallel import design_evaluator
 
-    log = read_probe_log(args.plan)
+    log = read_probe(args.plan, "design")
     w, wn, _ids = targets_from_log(log)
     grid = parse_grid(args.grid_mm, _swept(w))
     try:
@@ -92,7 +92,8 @@ def run(args) -> int:
             "format": DESIGN_FORMAT, "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
             "reference_deg": list(r.reference_deg) if r.reference_deg else None,
             "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),
-            "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg})
+            "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg,
+            "input_warnings": list(log.warnings)})
         from scenarios.cli.guard import said
 
         print(f"wrote {said(args.json)}")

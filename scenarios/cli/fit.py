@@ -72,7 +72,7 @@ def _v(x, nd=6):
 def run(args) -> int:
     from core.atomic import json_safe, write_json_atomic
     from core.features import NORMAL_AGREE_MAX_DEG, fit_log_feature
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from scenarios.cli.guard import about_file, progress_line
 
     chosen = " ".join(f"--{k} {w}" for k, w in (("feature", args.feature), ("setup", args.setup)) if w)
@@ -81,7 +81,7 @@ def run(args) -> int:
             read_s = lines * READ_S_PER_LINE
             bar(int(100 * done / max(lines, 1) * read_s / (read_s + FIT_S)), 100)
 
-        log = read_probe_log(args.log, progress=reading)
+        log = read_probe(args.log, "fit", progress=reading, bar=bar)
         with about_file(args.log, chosen):   # 'sphere fit: points are coplanar' names the log and the rows
             r = _fitted(log, args, fit_log_feature)
         bar(100, 100)
@@ -107,7 +107,8 @@ def run(args) -> int:
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm, "stylus_r_source": r.stylus_r_source,
                "log_stylus_r_mm": r.log_stylus_r_mm, "normal_angle_deg": r.normal_angle_deg,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}
-                           for i, t, e in zip(r.rows, tg, r.residuals_um)]}
+                           for i, t, e in zip(r.rows, tg, r.residuals_um)],
+               "input_warnings": list(log.warnings)}
         write_json_atomic(args.json, json_safe(rep), special=True)
         print(f"wrote {args.json}")
     return 0

@@ -46,7 +46,7 @@ def _run(args, bar) -> int:
     import numpy as np
 
     from core.exceptions import ConfigError
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from core.scope import check_planar_scope
     from core.selfcal import self_calibrate, yaw_for_chain
     from core.touches import from_log
@@ -62,7 +62,8 @@ def _run(args, bar) -> int:
         raise ConfigError(f"--tool-offset-mm {args.tool_offset_mm!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
     steps = 4 if args.mc else 3
     bar(0, steps)
-    log = read_probe_log(args.log)
+    log = read_probe(args.log, "identify", bar=bar)
+    warned = list(log.warnings)
     check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
     other = [k for k in sub if k in ("ECY", "ECX") and k != yaw]
@@ -103,6 +104,7 @@ def _run(args, bar) -> int:
     from core.atomic import write_json_atomic
 
     report = identify_report(res, mc, on)   # the state at reading + J, with its identified_on record
+    report["input_warnings"] = warned
     out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it

@@ -33,14 +33,15 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from core.probelog import read_probe_log, write_probe_log
+    from core.probelog import write_probe_log
+    from scenarios.cli.reading import read_probe
 
     from core.exceptions import ConfigError
 
     from hardware.transcript import program_stroke
 
     stroke = program_stroke(args.clearance, args.overtravel)
-    plan = read_probe_log(args.plan) if args.plan else None
+    plan = read_probe(args.plan, "import") if args.plan else None
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
 

@@ -152,11 +152,11 @@ def run_serve(args) -> int:
 
 def run_program(args) -> int:
     from core.atomic import write_text_atomic
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from hardware.linuxcnc import part_program
     from scenarios.cli.options import settings_from_args
 
-    plan = read_probe_log(args.plan)
+    plan = read_probe(args.plan, "machine program")
     settings = settings_from_args(args)
     if args.machine is not None:
         from dataclasses import replace

@@ -45,10 +45,10 @@ def _warn(msg: str) -> None:
 
 
 def run(args) -> int:
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from hardware.campaign import check_program, plan_steps, plan_turns
 
-    plan = read_probe_log(args.plan)
+    plan = read_probe(args.plan, "probe")
     settings = settings_from_args(args)
     steps = plan_steps(plan, settings)
     if args.dry_run:

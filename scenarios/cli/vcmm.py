@@ -59,7 +59,7 @@ def run(args) -> int:
 
     from core.atomic import json_safe, write_json_atomic
     from core.exceptions import ConfigError
-    from core.probelog import read_probe_log
+    from scenarios.cli.reading import read_probe
     from core.vcmm import load_task
     from scenarios.cli.guard import progress_line, said
     from scenarios.vcmm import prepare, study
@@ -73,7 +73,7 @@ def run(args) -> int:
     if args.sobol_runs < 0 or args.sobol_runs == 1:
         raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
     spec = truth_machine(args.machine, args.errors, "none")
-    plan = read_probe_log(args.plan)
+    plan = read_probe(args.plan, "vcmm")
     state = None
     if args.machine_state is not None:
         from core.state import read_estimate
@@ -103,6 +103,7 @@ def run(args) -> int:
         bar.clear()
     rep.pop("values_si")
     rep["plan"] = str(args.plan)
+    rep["input_warnings"] = list(plan.warnings)
     print(f"{args.plan}: {rep['touches']} touches on {rep['machine']}, {rep['runs']} runs "
           f"({rep['runs_total']} with the budget, {rep['runs_per_s']:.1f} runs/s), seed {args.seed}")
     for m in rep["measurands"]:

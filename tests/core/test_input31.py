@@ -123,7 +123,9 @@ def test_an_empty_rotary_cell_is_zero_with_a_warning_and_identify_names_the_rows
     js = tmp_path / "id.json"
     assert main(["identify", str(p), "--json", str(js)]) == 2
     err = capsys.readouterr().err
-    assert err == (f"vmt identify: error: {p}: set-up 'C75': C varies within the set-up (0..75 deg: row 36 at 0, "
+    # the reader's warning first (warn31: every command says it), then the refusal it explains
+    assert err == (f"vmt identify: warning: {log.warnings[0]}\n"
+                   f"vmt identify: error: {p}: set-up 'C75': C varies within the set-up (0..75 deg: row 36 at 0, "
                    "row 37 at 75); one indexing per set-up\n")
     assert not js.exists()
     # a column left empty throughout is the column absent: 0, no warning

@@ -122,8 +122,8 @@ def test_discover_command_lets_the_probe_log_go_before_the_search(monkeypatch, t
     P.write_probe_log(path, P.make_log(cols, {**base.meta, "kinematic_chain": "xyc"}, validate=False))
     read, refs, seen = P.read_probe_log, [], []
 
-    def reading(p):
-        log = read(p)
+    def reading(p, **kw):   # (the CLI's reader, scenarios.cli.reading, passes its progress)
+        log = read(p, **kw)
         refs.append(weakref.ref(log))
         return log
 
