@@ -95,3 +95,18 @@ def test_gen_a_thermal_bending_8907_the_inflated_direction_carries_it(monkeypatc
     monkeypatch.setattr(D, "VIF_DROP_BEYOND_MAX", True)
     o = _a8907()
     assert o.cause == "unexplained" and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+
+
+@pytest.mark.slow
+def test_gen_c_outlier_6106_report_says_which_map():
+    """The report says the 22 mm map was taken and why: the coarse map's reading, and the same outliers alone here."""
+    from core.baseline import extra_columns
+    from core.touches import from_log
+
+    log, _ = gen_c.generate("outlier", 6106)
+    t = from_log(log)
+    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    assert rep["baseline"]["grid_step_mm"] == 22.0 and rep["outlier_rows"] == [78, 103, 132], rep["baseline"]
+    note = [c for c in rep["conventions"] if "the finest identifiable" in c]
+    assert len(note) == 1 and "read periodic_axis_error" in note[0], rep["conventions"]
+    assert "only the outliers the screen set aside on that one too" in note[0] and "nothing on this one" not in note[0]
