@@ -2831,6 +2831,21 @@ FINER_MAP_CAUSES = ("unexplained", "periodic_axis_error", "nonrigid")
 #: (41 campaigns). Set from those two sets (session 27), a round factor between them.
 FINER_MAP_U95_RATIO = 2.0
 
+#: With :data:`FINER_MAP_CHECK`: the finer map's discovery is taken also where it reads only outliers the coarse
+#: map's screen set aside too (every finding ``outlier``, its rows among the coarse map's:
+#: :func:`_finer_reads_the_same_outliers`), not only where it reads ``none``. A coarse grid's misfit of the smooth
+#: machine read as a ripple at the grid step, beside a few gross touches set aside: the finer map reads the same
+#: outliers and nothing else, and the check, asking for ``none``, kept the ripple (blind gen_c outlier 6106,
+#: session 31: BIC's 80 mm grid with the outliers in and without them, so :data:`GRID_AFTER_OUTLIERS` finds no other;
+#: ``periodic_axis_error`` at 81.4 mm, 0.12 um, confident; the log without the three touches reads the same ripple
+#: on 80 mm and ``none`` through the check; the 22 mm map reads the three outliers alone). On (diag31): it fired on
+#: 2 of 935 tuning campaigns, both wrong -> right (twins of 6106: gen_c outlier 134, a confident ripple, and 162, a
+#: hedged ``nonrigid``; both ``outlier``), 0 right -> wrong: nowhere else on gen_a/gen_b 1000-1004 every effect and
+#: none 1000-1019, the simulator 4000-4009, gen_c 200-219 every effect, gen_c outlier 0-199 or gen_a
+#: thermal_bending 1100-1199. docs/discovery.md, "Session 31: a coarse map's ripple beside outliers, and a part
+#: change inflated 181 times (diag31)".
+FINER_MAP_OUTLIERS_AGREE = True
+
 
 def _u95_rms(d: Discovery) -> float:
     """RMS over the targets of the baseline workpiece's U95 (k = 2) outside the workpiece's gauge (a translation
@@ -2867,9 +2882,23 @@ def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note
         df = discover_baseline(bl, settings=settings, rng=rng)
     finally:
         _PLAIN_STRUCTURE[0] = False
-    if df.cause != causes_mod.NONE or not _u95_rms(df) <= FINER_MAP_U95_RATIO * _u95_rms(d):
+    agree = _finer_reads_the_same_outliers(df, d)
+    if (df.cause != causes_mod.NONE and not agree) or not _u95_rms(df) <= FINER_MAP_U95_RATIO * _u95_rms(d):
         return d
+    if agree:
+        df = dataclasses.replace(df, conventions=tuple(
+            c.replace(", and nothing on this one", ", and on this one only the outliers the screen set aside on that "
+                                                 "one too") for c in df.conventions))
     return df
+
+
+def _finer_reads_the_same_outliers(df: Discovery, d: Discovery) -> bool:
+    """Whether the finer map's discovery ``df`` reads nothing but outliers the coarse map's ``d`` set aside too
+    (:data:`FINER_MAP_OUTLIERS_AGREE`): every finding ``outlier``, its rows among ``d``'s (the two baselines hold
+    the same touches in the same order)."""
+    return bool(FINER_MAP_OUTLIERS_AGREE and df.findings and d.outlier_rows
+                and all(f.cause == causes_mod.OUTLIER for f in df.findings)
+                and set(df.outlier_rows) <= set(d.outlier_rows))
 
 
 
