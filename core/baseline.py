@@ -523,7 +523,7 @@ PLANAR_ABBE_BIC = False
 #: and they leave at most this share of those touches' residual sum of squares (the held-out ratio). An effect on a
 #: raised feature of the part (gen_b's closing slot, a bending stylus) follows the part or the set-up and is not
 #: predicted across set-ups, where BIC (:data:`PLANAR_ABBE_BIC`) judged the columns on residuals that still held it.
-#: Measured (docs/discovery.md "Session 31: the planar Abbe columns judged beside the effect ..."): the regress study's
+#: Measured (docs/discovery-studies.md "Session 31: the planar Abbe columns judged beside the effect ..."): the regress study's
 #: raised touches give 0.48-0.66 with the screw (its failing seeds 1, 10, 15: 0.48-0.53), 0.22-0.59 without; gen_b
 #: every effect 1000-1011 0.667 and up (the nine campaigns ``PLANAR_ABBE`` cost: 0.74-1.04), gen_a 0.42 and up (two
 #: below 0.6), gen_c 0.599 and up (one). At 0.6 on 1,000 tuning campaigns (gen_a/gen_b every effect 1000-1011 and none

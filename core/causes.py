@@ -2447,7 +2447,7 @@ def bending_bar_magnitudes(info, coef, bl):
 
 #: A bar's sag must have gravity's sign: a ``bar_bending`` fitted bending upward (``midspan_sag_um`` below zero by more
 #: than its U95) is refused as implausible (:func:`bar_sag_plausible`); False: any sign within the bounds (the
-#: behaviour before). Session 31 (review31c F2, docs/discovery.md): a temperature gradient along the bar read
+#: behaviour before). Session 31 (review31c F2, docs/discovery-studies.md): a temperature gradient along the bar read
 #: `bar_bending` named with a sag of -1.40 +- 0.33 um (seed 347).
 BAR_SAG_GRAVITY_SIGN = True
 

@@ -2842,7 +2842,7 @@ FINER_MAP_U95_RATIO = 2.0
 #: 2 of 935 tuning campaigns, both wrong -> right (twins of 6106: gen_c outlier 134, a confident ripple, and 162, a
 #: hedged ``nonrigid``; both ``outlier``), 0 right -> wrong: nowhere else on gen_a/gen_b 1000-1004 every effect and
 #: none 1000-1019, the simulator 4000-4009, gen_c 200-219 every effect, gen_c outlier 0-199 or gen_a
-#: thermal_bending 1100-1199. docs/discovery.md, "Session 31: a coarse map's ripple beside outliers, and a part
+#: thermal_bending 1100-1199. docs/discovery-studies.md, "Session 31: a coarse map's ripple beside outliers, and a part
 #: change inflated 181 times (diag31)".
 FINER_MAP_OUTLIERS_AGREE = True
 
@@ -9556,7 +9556,7 @@ def _doubt_beside_noise_excess(findings: list) -> None:
 #: ``ambiguous`` (the moved bar named where the placement was measured more than once). Only ever a hedge: the
 #: concentration test keeps its events (every row its own), since counted per placement its fewer events passed
 #: outliers it had found gathered (the simulator's `none` 4008: `outlier` ambiguous -> named). None: not counted
-#: (the behaviour before). The screen that removes them is unchanged. Session 31 (review31c F1, docs/discovery.md
+#: (the behaviour before). The screen that removes them is unchanged. Session 31 (review31c F1, docs/discovery-studies.md
 #: "Session 31: MFB discovery that does not confidently misname a moved or warmed bar"): a bar turned 1 um at its
 #: ends in its fixture after a placement's first measurement read `outlier` confidently on 14 of 20 campaigns.
 VOLUMETRIC_OUTLIER_EVENTS = "placement"

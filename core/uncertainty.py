@@ -275,7 +275,7 @@ SIGMA_BESIDE_MIN_DOF = 20
 #: the selfcal coverage studies' declared rows were re-run with it (``python -m scenarios.selfcal_coverage
 #: --seeds 20 40`` and ``200 240 --budget declared``, both machines, noise 0 and 0.5 um): at 0.5 um every block
 #: 0.939-0.988 (was 0.937-0.986), noise free the workpiece's median U95 1.16-1.32 -> 1.04-1.05 um and the
-#: nmv3000's C axis 0.981 (was 1.000); docs/discovery.md "Session 31: declared ripples counted once ...".
+#: nmv3000's C axis 0.981 (was 1.000); docs/discovery-studies.md "Session 31: declared ripples counted once ...".
 DECLARED_IN_MOMENTS = True
 #: How :data:`DECLARED_IN_MOMENTS` takes the declared ripples off: True, the residuals' part along each declared
 #: ripple's residual directions (``span(R Phi_r)``, 2 per ripple: its sine and cosine parts) is projected out before
@@ -289,7 +289,7 @@ DECLARED_MOMENTS_SPAN = True
 #: equations; a tuple of lengths (None among them for the white table): per table the one whose gate statistic
 #: ``z`` stands out most. Session 31 (ripple31): under an undeclared EXX ripple at random phases (10-60 mm) the
 #: chosen length mends EXX/EYY at 27.5-60 mm but not the set-ups' yaw (65 %) nor the 10 mm workpiece (88 %), and
-#: the realistic mikron's residuals-only rows get worse; docs/discovery.md "Session 31: declared ripples counted
+#: the realistic mikron's residuals-only rows get worse; docs/discovery-studies.md "Session 31: declared ripples counted
 #: once ...".
 MODEL_ERROR_CORR_M = None
 #: The tables whose unrepresented part is budgeted (the yaw is ECY or ECX).

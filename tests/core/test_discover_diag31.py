@@ -7,7 +7,7 @@ other), and the 80 mm map's misfit of gen_c's smooth machine is read as a ripple
 0.12 um, explained 0.063 um RMS). :data:`core.discover.FINER_MAP_CHECK` runs the 22 mm map, which reads the same three
 outliers and nothing else, but it asked for ``none`` and so kept the ripple. :data:`FINER_MAP_OUTLIERS_AGREE` (on)
 takes the finer map there too (tuning twins gen_c outlier 134, confident ripple, and 162 hedged nonrigid, both
-``outlier`` with it; no right -> wrong on the tuning sets measured) (docs/discovery.md, "Session 31: a coarse map's ripple beside outliers, and a part change
+``outlier`` with it; no right -> wrong on the tuning sets measured) (docs/discovery-studies.md, "Session 31: a coarse map's ripple beside outliers, and a part change
 inflated 181 times").
 
 gen_a thermal_bending 8907 (extended workpiece 6.909 um against baseline 1.053 + U95 2.114): a hedged

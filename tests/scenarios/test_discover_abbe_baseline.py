@@ -158,7 +158,7 @@ def test_bic_leaves_the_columns_out_where_the_machine_has_none(monkeypatch, seed
 
 # --- session 31 (abbe31): the columns gated on the raised touches' own evidence (``PLANAR_ABBE_GATE``) ---
 
-#: The gate's level as measured (docs/discovery.md "Session 31: ..."): the regress study's raised touches leave
+#: The gate's level as measured (docs/discovery-studies.md "Session 31: ..."): the regress study's raised touches leave
 #: held-out ratios 0.48-0.66 with the screw, 0.22-0.59 without (seeds 1-20); the tuning campaigns' least 0.42
 #: (gen_a vibration 1005), gen_b's 0.667.
 GATE = 0.6
