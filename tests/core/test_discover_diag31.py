@@ -19,7 +19,6 @@ extended workpiece of bore1's walls moves 7-37 um with an extended U95 of 4-8 um
 
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
 import core.discover as D
