@@ -112,28 +112,39 @@ def test_with_the_terms_the_regress_study_names_the_screw_alone(monkeypatch):
 
 # --- session 30 (abbe30): the columns offered to the baseline's BIC choice (``PLANAR_ABBE_BIC``, built and off) ---
 
-def test_bic_takes_the_columns_where_the_machine_has_them(monkeypatch):
-    # the regress study's realistic machine (0.3 um noise, seed 1): BIC takes the two Abbe columns (the misfit
-    # they hold, 0.107 -> 0.019 um RMS noise-free, is far beyond their 2 ln n), and discover names the screw alone;
-    # with the variant off (and PLANAR_ABBE off) the columns are not there and unexplained is named beside it
+def _shipped_study_discovered(monkeypatch, const: str, values) -> dict:
+    """The shipped regress study's campaign (0.3 um noise, the screw, seed 1) written to a log and run through
+    ``vmt discover``'s library with ``core.baseline.<const>`` set to each of ``values``: per value, (whether the
+    baseline holds the Abbe shear columns, the causes found)."""
     from scenarios.regress import _cross_pocket as cp
     from core.probelog import write_probe_log
     from scenarios.cli.discover import run_discover
     import json, tempfile, pathlib
-    monkeypatch.setattr(B, "PLANAR_ABBE", False)
     st = _study(0.3, screw=True)
     *_, log = cp(st, 1)
     t = from_log(log)
+    got = {}
     with tempfile.TemporaryDirectory() as d:
         p, j = pathlib.Path(d) / "c.csv", pathlib.Path(d) / "d.json"
         write_probe_log(p, log)
-        got = {}
-        for on in (False, True):
-            monkeypatch.setattr(B, "PLANAR_ABBE_BIC", on)
+        for v in values:
+            monkeypatch.setattr(B, const, v)
             b = B.planar(t, yaw=yaw_for_chain(log.meta.get("kinematic_chain")))
-            assert any(n.startswith("Abbe shear") for n in b.names) == on
             run_discover(str(p), str(j))
-            got[on] = [f["cause"] for f in json.loads(j.read_text())["findings"]]
+            got[v] = (any(n.startswith("Abbe shear") for n in b.names),
+                      [f["cause"] for f in json.loads(j.read_text())["findings"]])
+    return got
+
+
+
+def test_bic_takes_the_columns_where_the_machine_has_them(monkeypatch):
+    # the regress study's realistic machine (0.3 um noise, seed 1): BIC takes the two Abbe columns (the misfit
+    # they hold, 0.107 -> 0.019 um RMS noise-free, is far beyond their 2 ln n), and discover names the screw alone;
+    # with the variant off (and PLANAR_ABBE off) the columns are not there and unexplained is named beside it
+    monkeypatch.setattr(B, "PLANAR_ABBE", False)
+    got = _shipped_study_discovered(monkeypatch, "PLANAR_ABBE_BIC", (False, True))
+    assert [got[on][0] for on in (False, True)] == [False, True]  # (the columns taken only with the variant)
+    got = {on: got[on][1] for on in got}
     assert got[False] == ["periodic_axis_error", "unexplained"]
     assert got[True] == ["periodic_axis_error"]
 
@@ -205,25 +216,11 @@ def test_raised_evidence_needs_two_setups():
 def test_gate_takes_the_columns_where_the_raised_touches_show_them(monkeypatch):
     # the shipped regress study (0.3 um noise, seed 1: held-out ratio 0.48): the gate takes the two columns and
     # discover names the screw alone; without the gate (None), the screw and unexplained (KNOWN_FAILING's pin)
-    from scenarios.regress import _cross_pocket as cp
-    from core.probelog import write_probe_log
-    from scenarios.cli.discover import run_discover
-    import json, tempfile, pathlib
     monkeypatch.setattr(B, "PLANAR_ABBE", False)
     monkeypatch.setattr(B, "PLANAR_ABBE_BIC", False)
-    st = _study(0.3, screw=True)
-    *_, log = cp(st, 1)
-    t = from_log(log)
-    with tempfile.TemporaryDirectory() as d:
-        p, j = pathlib.Path(d) / "c.csv", pathlib.Path(d) / "d.json"
-        write_probe_log(p, log)
-        got = {}
-        for gate in (None, GATE):
-            monkeypatch.setattr(B, "PLANAR_ABBE_GATE", gate)
-            b = B.planar(t, yaw=yaw_for_chain(log.meta.get("kinematic_chain")))
-            assert any(n.startswith("Abbe shear") for n in b.names) == (gate is not None)
-            run_discover(str(p), str(j))
-            got[gate] = [f["cause"] for f in json.loads(j.read_text())["findings"]]
+    got = _shipped_study_discovered(monkeypatch, "PLANAR_ABBE_GATE", (None, GATE))
+    assert [got[g][0] for g in (None, GATE)] == [False, True]  # (the columns taken only through the gate)
+    got = {g: got[g][1] for g in got}
     assert got[None] == ["periodic_axis_error", "unexplained"]
     assert got[GATE] == ["periodic_axis_error"]
 
