@@ -66,7 +66,7 @@ import io
 import math
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, Mapping
 
@@ -833,9 +833,10 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     needs its ``# format:`` line). Directions: ``+ - up down fwd bwd forward
     backward pos neg +1 -1 1``. Lines starting with ``#`` are comments
     (``# key: value`` lines become metadata), anywhere in the file, unlike a
-    positioning log's (before its header only); a key given twice with two
-    values is refused, as in a positioning log (a ``# unit: mm`` below a
-    ``# unit: deg`` read the table in mm before session 31). The unit (``mm`` or ``deg``):
+    positioning log's (before its header only); a key vmt reads given twice
+    with two values is refused, as in a positioning log (a ``# unit: mm``
+    below a ``# unit: deg`` read the table in mm before session 31), and any
+    other key keeps its first value with a warning (:func:`core.probelog.add_meta`). The unit (``mm`` or ``deg``):
     the one in the target or measured column's name (``target_deg``), else
     ``unit``, else a ``# unit:`` comment line, else mm; a name in another
     unit than ``unit`` or the ``# unit:`` line, or two names in two units,
@@ -846,13 +847,15 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         raise PositioningLogError(f"{src}: empty file")
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
+    meta_warnings: list[str] = []
     rows: list[tuple[int, list[str]]] = []
     for ln, line in enumerate(csv_lines(text), start=1):
         s = line.strip()
         if not s:
             continue
-        if s.startswith("#"):   # anywhere in a table (a comment between blocks); a key twice with two values
-            add_meta(meta, meta_line, s, ln, src, error=PositioningLogError)   # is refused (warn31: the last won)
+        if s.startswith("#"):   # anywhere in a table (a comment between blocks); a key vmt reads twice with two
+            add_meta(meta, meta_line, s, ln, src, error=PositioningLogError,   # values is refused (warn31: the last
+                     warnings=meta_warnings)                                    # won), another keeps its first
             continue
         if "," in s or ";" in s:
             cells = [c.strip() for c in re.split(r"[,;]", s)]
@@ -943,7 +946,8 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     meta.setdefault("imported_from", "table")
     meta.pop("format", None)
     meta.pop("unit", None)
-    return make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src, lines=lns)
+    log = make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src, lines=lns)
+    return replace(log, warnings=log.warnings + tuple(meta_warnings)) if meta_warnings else log
 
 
 def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str | None = None) -> PositioningLog:

@@ -26,3 +26,13 @@ def test_the_same_value_twice_and_comments_between_blocks_read_as_before():
     log = parse_table(text, "t.txt")
     assert log.unit == "deg" and log.meta["axis"] == "C" and log.n == 4
     assert list(log.measured) == [0.001, 10.002, 0.0, 10.001]
+
+
+def test_a_key_vmt_does_not_read_given_twice_keeps_its_first_with_a_warning():
+    """The positioning log's rule (core.probelog.add_meta, review31e F1): the specs keep and ignore unknown keys,
+    so a repeated '# note:' is not a refusal; the table says so as the other readers do."""
+    text = "\n".join(["# note: first run", *READINGS[:2], "# note: return run", *READINGS[2:]]) + "\n"
+    log = parse_table(text, "t.txt")
+    assert log.meta["note"] == "first run" and log.n == 4
+    assert ("line 4: metadata key 'note' given twice ('first run' on line 1, 'return run' on line 4): the first kept "
+            "(vmt does not read it)") in log.warnings
