@@ -2080,16 +2080,20 @@ class PtyServer:
         self._port = _PtyPort(self.master)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._reset_on_open = False     # a power cycle armed for the host's next opening (power_cycle)
 
     @property
     def url(self) -> str:
         return f"serial://{self.path}"
 
     def power_cycle(self) -> None:
-        """A hardware reset of the controller on the line (:meth:`GrblEmulator.power_cycle`): its
-        banner waits in the line for the next reader, as when a host's opening of an Arduino's
-        serial port resets it (DTR)."""
-        self.runner.power_cycle(self._port)
+        """A hardware reset of the controller when the host next opens its port, as an Arduino's is
+        (DTR): it happens at the host's first bytes, once the host has opened the line and set it up,
+        and its banner comes before their answers. Made at once, the banner would sit in the line
+        before the host opened it, and the host's set-up (``tcsetattr`` with TCSAFLUSH, as
+        ``tty.setraw`` does) discards it as a real line's stale bytes: a test that read it or not
+        by the threads' timing (session 31)."""
+        self._reset_on_open = True
 
     def start(self) -> "PtyServer":
         self.runner.start()
@@ -2108,6 +2112,9 @@ class PtyServer:
                 time.sleep(0.05)
                 continue
             if data:
+                if self._reset_on_open:   # the host opened the port: the board resets first (the inbox keeps
+                    self._reset_on_open = False   # the order: banner, then the answers to these bytes)
+                    self.runner.power_cycle(self._port)
                 self.runner.send(self._port, data)
 
     def stop(self) -> None:
