@@ -109,8 +109,9 @@ def _machine(seed: int, say):
 
 def _campaign(machine, probe, seed: int, outp: Path, say):
     """Step 2: the cross-pocket campaign at four C angles, written and read back (only the file counts)."""
-    from core.probelog import read_probe_log, write_probe_log
+    from core.probelog import write_probe_log
     from core.touches import from_log
+    from scenarios.cli.reading import read_probe
     from scenarios.hidden import drift_check_plan
     from scenarios.identify_report import identify_record
     from sim import artefacts as A
@@ -122,7 +123,7 @@ def _campaign(machine, probe, seed: int, outp: Path, say):
     log = simulate_campaign(art, machine, probe, angles, np.random.default_rng(seed + 1), plan=plan,
                             meta={"scenario": "vmt demo"})
     log_path = write_probe_log(outp / "cross-pocket.csv", log)
-    log = read_probe_log(log_path)  # from here on, only what the file holds
+    log = read_probe(log_path, "demo")  # from here on, only what the file holds (its reader's warnings said)
     say(f"{log.n} touches ({plan.n} per C angle at C = {', '.join(f'{a:g}' for a in angles)} deg), "
         f"{np.nanmax(log.col('t_s')) / 60:.1f} min of machine time -> {log_path}")
     # what identify.json's state is identified on: the log's machine and chain, the probe offsets J the
