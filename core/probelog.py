@@ -1157,7 +1157,41 @@ def summary(log: ProbeLog) -> dict:
         statuses[s or "ok"] = statuses.get(s or "ok", 0) + 1
     out["status"] = statuses
     out["repeated"] = repeated_touches(log)
+    out["turned_within_setup"] = turned_within_setup(log)
     out["warnings"] = list(log.warnings)
+    return out
+
+
+def turned_within_setup(log: ProbeLog) -> list[dict]:
+    """Set-ups whose rotary position changes between their rows, one record per (set-up, axis): ``setup``,
+    ``axis``, ``min_deg``, ``max_deg``, the set-up's first row and position (``first_row``, ``first_deg``) and the
+    first row off it (``row``, ``row_deg``); rows are 0-based, as identify names them. An empty cell is skipped.
+
+    The planar self-calibration (``vmt identify``, ``vmt discover``) takes one indexing per set-up and refuses
+    such a log; a 5-axis campaign may turn within a placement on purpose. ``vmt check`` says which, so the file
+    is not called valid and then refused by the next command without a word (an empty ``C_deg`` cell read as 0
+    in a set-up at C 75 is the usual cause). The rows of every status count: a set-up is one indexing.
+    O(n log n) over the rows (a 1e6-row log).
+    """
+    out: list[dict] = []
+    setups = np.asarray(log.col("setup"), dtype=object)
+    for ax in ("A", "B", "C"):
+        if not log.has(f"{ax}_deg"):
+            continue
+        v = np.asarray(log.columns[f"{ax}_deg"], dtype=float)
+        rows = np.flatnonzero(~np.isnan(v))
+        if rows.size == 0:
+            continue
+        names, first, code = np.unique(setups[rows], return_index=True, return_inverse=True)
+        x0 = v[rows[first]][code]                        # each row's set-up's first position (file order)
+        off = np.abs(v[rows] - x0) > 1e-9
+        for g in np.argsort(first):                      # the set-ups in the order the file has them
+            k = np.flatnonzero(off & (code == g))
+            if k.size:
+                vals = v[rows[code == g]]
+                out.append({"setup": names[g], "axis": ax, "min_deg": float(vals.min()), "max_deg": float(vals.max()),
+                            "first_row": int(rows[first[g]]), "first_deg": float(v[rows[first[g]]]),
+                            "row": int(rows[k[0]]), "row_deg": float(v[rows[k[0]]])})
     return out
 
 

@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 import re
 from pathlib import Path
 
@@ -388,6 +389,27 @@ def test_summary_reports_repeated_setup_target_touches(rng):
     assert rep["touches"] == 3 and rep["pairs"] == 2
     assert rep["examples"][0] == {"setup": "C0", "target": "t02", "times": 2}
     assert rep["examples"][1]["times"] == 3
+
+
+def test_summary_names_a_setup_that_turns_as_identify_refuses_it(rng):
+    """vmt check called a log valid that identify then refused (C read as 0 from an empty cell in set-up C75):
+    the summary names the set-up and the same two rows as identify's refusal, which is worked out apart
+    (core.selfcal over the touches)."""
+    from core.exceptions import ConfigError
+    from core.selfcal import _setup_angles
+
+    log = full_log(rng)
+    assert summary(log)["turned_within_setup"] == []
+    c = log.columns["C_deg"].copy()
+    c[6] = 0.0                                   # set-up C1 (rows 4-7, C 75): its third row read as 0
+    turned = summary(replace(log, columns={**log.columns, "C_deg": c}))["turned_within_setup"]
+    assert turned == [{"setup": "C1", "axis": "C", "min_deg": 0.0, "max_deg": 75.0,
+                       "first_row": 4, "first_deg": 75.0, "row": 6, "row_deg": 0.0}]
+    with pytest.raises(ConfigError, match=r"set-up 'C1': C varies within the set-up \(0..75 deg: row 4 at 75, "
+                                          r"row 6 at 0\)"):
+        _setup_angles(from_log(replace(log, columns={**log.columns, "C_deg": c})))
+    c[6] = np.nan                                # an unread position is not a turn
+    assert summary(replace(log, columns={**log.columns, "C_deg": c}))["turned_within_setup"] == []
 
 
 def test_unreadable_device_and_fifo_inputs(tmp_path, monkeypatch):

@@ -23,6 +23,12 @@ def test_check_summarises_a_valid_log(tmp_path, capsys):
     assert main(["check", str(p)]) == 0
     out = capsys.readouterr().out
     assert "touches  3 (3 ok)" in out and "set-ups 2" in out and "0, 90 deg" in out
+    assert "turned" not in out
+    cols["C_deg"] = [0, 90, 90]                  # set-up a turns: identify would refuse it, check says so
+    p = write_probe_log(tmp_path / "turned.csv", make_log(cols))
+    assert main(["check", str(p)]) == 0
+    assert ("turned   set-up 'a': C varies within it (0..90 deg: row 0 at 0, row 1 at 90): identify and discover "
+            "take one indexing per set-up and refuse it") in capsys.readouterr().out
 
 
 def test_check_shows_progress_with_time_left(tmp_path, capsys, monkeypatch):
