@@ -179,7 +179,9 @@ ROTARY_COLUMNS = ("A_deg", "B_deg", "C_deg")
 #: (session 31, input31, review31 F5): the spec's normal points "out of the material (towards the stylus)" and
 #: ``dx,dy,dz`` is "the approach direction of the stylus at the trigger", so a stylus that triggers on the surface
 #: moves into it, ``-(d . n) > 0``. A direction along the normal's side (``d . n >= 0``: away from the surface, or
-#: tangential to it) cannot trigger at the target and is refused, naming the row. 0.0 refuses only what is
+#: tangential to it) cannot trigger at the target and is refused, naming the row; on a row whose status is not ``ok``
+#: (no_trigger, alarm: no trigger happened) it is a warning and the file is read (session 32: one retracting
+#: no_trigger row refused the whole campaign's file, review31e). 0.0 refuses only what is
 #: physically impossible (no approach angle, however oblique, is judged here); None: no check (before session 31).
 APPROACH_INTO_MIN: float | None = 0.0
 
@@ -999,13 +1001,24 @@ def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = N
             into = -np.einsum("ij,ij->i", d, np.column_stack([c["nx"], c["ny"], c["nz"]]))
             bad = into <= APPROACH_INTO_MIN
             if bad.any():
-                r = int(np.argmax(bad))
+                # a row not valid as a touch (no_trigger, alarm, ...) triggered nowhere: its direction is what the
+                # machine was doing when it stopped (a retract), used by no analysis: warned of, the file kept
+                rows = np.flatnonzero(bad)
+                valid = (np.fromiter((is_ok_status(s) for s in c["status"][rows]), bool, rows.size)
+                         if "status" in c else np.ones(rows.size, bool))
+                r = int(rows[valid][0]) if valid.any() else int(rows[0])
                 way = "tangential to" if abs(into[r]) <= UNIT_TOL else "out of"
-                raise ProbeLogError(
-                    f"{_where(src, r, lines)}: approach direction (dx,dy,dz) {_xyz(d[r])} "
-                    f"points {way} the surface: its angle to the normal (nx,ny,nz) pointing out of the material is "
-                    f"{np.degrees(np.arccos(np.clip(-into[r], -1, 1))):.4g} deg; a stylus triggers moving into the "
-                    "material, against the normal (under 90 deg to -(nx,ny,nz))")
+                what = (f"approach direction (dx,dy,dz) {_xyz(d[r])} points {way} the surface: its angle to the "
+                        f"normal (nx,ny,nz) pointing out of the material is "
+                        f"{np.degrees(np.arccos(np.clip(-into[r], -1, 1))):.4g} deg")
+                if valid.any():
+                    raise ProbeLogError(
+                        f"{_where(src, r, lines)}: {what}; a stylus triggers moving into the material, against the "
+                        "normal (under 90 deg to -(nx,ny,nz))")
+                if warnings is not None:
+                    more = f" (and {rows.size - 1} more such invalid rows)" if rows.size > 1 else ""
+                    warnings.append(f"{_where(src, r, lines)}: status {c['status'][r]!r}: {what}{more}; kept (the "
+                                    "row is not a touch, no analysis reads its direction)")
     # time never goes backwards (rows are in the order touches happened)
     t = c["t_s"]
     back = step_back(t)

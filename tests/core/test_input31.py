@@ -210,6 +210,26 @@ def test_an_oblique_approach_into_the_surface_reads():
     assert log.columns["dy"][1] == -c
 
 
+def test_an_outward_approach_on_a_row_that_is_not_a_touch_is_a_warning(tmp_path, capsys):
+    """A no_trigger row triggered nowhere: its (dx,dy,dz) is what the machine did when it gave up (a retract), read
+    by no analysis. Session 31 refused the whole file for it (review31e, notrig_out.csv); since session 32 it is a
+    warning naming the row, the file is read, and an ok row with the same direction is still refused."""
+    text = (f"# format: probe-log/1\n{HEAD},dx,dy,dz,status\n"
+            "S1,T1,1.0,10.0,0.0,0.0,10.0,0.0,0.0,1,0,0,-1,0,0,ok\n"
+            "S1,T2,2.0,0.0,10.0,0.0,0.0,10.0,0.0,0,1,0,0,1,0,{status}\n")
+    log = parse_probe_log(text.format(status="no_trigger"), "a.csv")
+    assert log.n == 2 and list(log.columns["status"]) == ["ok", "no_trigger"]
+    assert log.warnings == ("a.csv: row 1 (line 4): status 'no_trigger': approach direction (dx,dy,dz) (0, 1, 0) "
+                            "points out of the surface: its angle to the normal (nx,ny,nz) pointing out of the "
+                            "material is 0 deg; kept (the row is not a touch, no analysis reads its direction)",)
+    with pytest.raises(ProbeLogError, match=r"^a\.csv: row 1 \(line 4\): approach direction"):
+        parse_probe_log(text.format(status="OK"), "a.csv")
+    f = tmp_path / "a.csv"
+    f.write_text(text.format(status="no_trigger"))
+    assert main(["check", str(f)]) == 0
+    assert "warning  " in capsys.readouterr().out
+
+
 # ---- F6: status words ------------------------------------------------------------------------------------------
 
 
