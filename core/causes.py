@@ -104,6 +104,7 @@ if TYPE_CHECKING:  # (annotations only: scipy.sparse is imported where it is use
 from .baseline import _xy_basis, _xy_products  # the products the unnamed smooth in xy uses: a named field spans the same functions
 from .diagnosis import TABLE_BYTES, StepTrials, scan_grid, screen_phasors
 from .memo import kept_on
+from .probelog import rounding_sd
 from .units import MM, UM, URAD
 
 
@@ -480,7 +481,7 @@ def clock_sensors(d) -> dict:
         v = np.unique(T)
         q = float(np.min(np.diff(v))) if len(v) > 1 else 0.0
         if q > 0 and np.all(np.abs((v - v[0]) / q - np.round((v - v[0]) / q)) < 1e-3):
-            scatter = max(scatter, q / np.sqrt(12.0))
+            scatter = max(scatter, rounding_sd(q))  # (the printing step's own scatter: one rule with vmt fit)
         if best <= CLOCK_RATIO * scatter:
             out[name] = {"time_fit_rms_K": best, "scatter_rms_K": scatter, "time_form": form}
     return out

@@ -22,8 +22,12 @@ normal at a touch is more than :data:`NORMAL_AGREE_MAX_DEG` from the log's norma
 round one height is not a plane; touches from above are not a circle). The largest angle accepted is
 ``FeatureReport.normal_angle_deg``.
 
-Each parameter comes with its U95 (:func:`core.fit.u95`: Student's t on the
-fit's own covariance) and the feature with its form deviation
+Each parameter comes with its U95: Student's t on the fit's own covariance
+(:func:`core.fit.u95`, the touches' scatter), never below what the log's
+printing allows (:func:`core.fit.rounding_u95` of the measured columns'
+printed steps, :func:`printing_steps_mm`; session 32, review31e F3: a perfect
+wall printed to 3 decimals fitted with zero residual and a U95 of 1e-25 um),
+and the feature with its form deviation
 (:func:`core.fit.form_deviation`, peak-to-valley about the least-squares
 feature). Units: mm, um, urad, as the field names say; frame: the machine
 frame R of the log.
@@ -62,7 +66,9 @@ class FeatureReport:
         (cylinder); ``side`` (``outside``: ball, boss, pin; ``inside``: bore).
     u95 : dict[str, float]
         U95 of each fitted parameter, unit in the name (``offset_n_um``,
-        ``tilt_u_urad``, ``centre_x_um``, ``radius_um``, ...).
+        ``tilt_u_urad``, ``centre_x_um``, ``radius_um``, ...): the larger of
+        ``u95_scatter`` and ``u95_rounding`` (NaN where the scatter's is: an
+        exact fit, no degree of freedom).
     form_um : float
         Form deviation (flatness, sphericity, roundness, cylindricity), um.
     rms_um : float
@@ -82,6 +88,14 @@ class FeatureReport:
     normal_angle_deg : float
         Largest angle, deg, between the fitted surface's outward normal at a touch and the log's normal of
         that touch (at most :data:`NORMAL_AGREE_MAX_DEG`: a larger one is refused).
+    u95_scatter : dict[str, float]
+        The Student-t U95 of the touches' scatter (:func:`core.fit.u95`), keys as ``u95``.
+    u95_rounding : dict[str, float]
+        The U95 the printing step allows at best (:func:`core.fit.rounding_u95`), keys as ``u95``; 0 for a log
+        printed at full precision.
+    printing_step_mm : tuple of float
+        The step the fitted coordinates were printed to, mm (``X_mm``, ``Y_mm``, ``Z_mm``; a circle ``X_mm``,
+        ``Y_mm``): :func:`printing_steps_mm`.
     """
 
     kind: str
@@ -97,6 +111,9 @@ class FeatureReport:
     stylus_r_source: str = "given"
     log_stylus_r_mm: float | None = None
     normal_angle_deg: float = math.nan
+    u95_scatter: dict | None = None
+    u95_rounding: dict | None = None
+    printing_step_mm: tuple = ()
 
 
 class NoStylusRadius(ConfigError):
@@ -129,8 +146,10 @@ MIXED_SHOWN = 6
 #: set-up and still refuses the fits that do not describe the probed surface (90 deg for those two).
 NORMAL_AGREE_MAX_DEG = 30.0
 
-#: A plan's nominal tip centres within this many of the log's printing step (``core.probelog.decimal_quantum``
-#: of the rows' nominal and measured coordinates, at most ``ONE_LINE_STEP_MAX_MM``) of one line in the surface
+#: A plan's nominal tip centres within this many of the log's printing step (the step its text printed ``Xn_mm``,
+#: ``Yn_mm``, ``Zn_mm`` to, the coarsest, where it records them: :data:`TEXT_STEPS`; else
+#: ``core.probelog.decimal_quantum`` of the rows' nominal and measured coordinates, at most
+#: ``ONE_LINE_STEP_MAX_MM``) of one line in the surface
 #: (plane) or of one height along the axis (cylinder) probe one line: rounding to the step moves a point by at
 #: most ``sqrt(3)/2`` steps, so 2 steps is rounding, not a second direction.
 ONE_LINE_QUANTA = 2.0
@@ -140,6 +159,16 @@ ONE_LINE_QUANTA = 2.0
 ONE_LINE_STEP_MAX_MM = 1e-3
 #: Relative floor of the one-line test (a log printed at full precision): ``FitTolerances.cond_max``'s 1e-8.
 ONE_LINE_REL = 1e-8
+#: Session 32 (fitq32, review31e F3): every U95 of ``vmt fit`` is at least what the log's printing step allows
+#: (:func:`core.fit.rounding_u95` of the steps :func:`printing_steps_mm` reads): a wall printed to 3 decimals whose
+#: touches share one printed X fitted with zero residual and a U95 of 1e-25 um, where its offset is unknown by up to
+#: the half step (0.5 um). False: the scatter's Student-t U95 alone (the behaviour before).
+ROUNDING_FLOOR = True
+#: Session 32 (fitq32): the printing step of a column comes from the log's text where it records one
+#: (:attr:`core.probelog.ProbeLog.text_steps`: ``48.000`` is printed to 1 um, where its value alone reads as whole
+#: mm); a column whose every cell is written without decimals (a step of 1 mm read from ``48``, hand-written) is an
+#: unknown step, read from the values as before. False: the values' step alone (the one-line test before).
+TEXT_STEPS = True
 
 
 def name_order(name: str) -> tuple:
@@ -211,9 +240,10 @@ def log_stylus_r_mm(log: ProbeLog, rows: np.ndarray) -> tuple[float | None, str]
     return v, "metadata"
 
 
-def _u95_named(fit, units: dict) -> dict:
+def _u95_named(u95: dict, units: dict) -> dict:
+    """``{name: U95}`` (m, rad) of a fit with each name's unit: ``{offset_n_um: ...}``."""
     out = {}
-    for name, v in F.u95(fit).items():
+    for name, v in u95.items():
         scale, unit = units.get(name, (1e6, "um"))
         out[f"{name}_{unit}"] = v * scale
     return out
@@ -238,19 +268,44 @@ def _which(log: ProbeLog, rows: np.ndarray) -> str:
     return ", ".join(out)
 
 
-def _one_line_tol(printed_mm: np.ndarray, spread_mm: float) -> tuple[float, str]:
-    """The one-line tolerance, mm, of coordinates printed to the step of ``printed_mm`` (the rows' nominal and
-    measured coordinates), and how it reads; ``spread_mm`` the nominal centres' RMS spread (``ONE_LINE_REL``)."""
+def _text_step(log: ProbeLog, col: str) -> float | None:
+    """The step the log's text printed ``col`` to, mm; None where it records none (a log built in memory) or
+    the column holds no decimal at all (``48``: an unknown step, not 1 mm) (:data:`TEXT_STEPS`)."""
+    q = log.text_steps.get(col) if TEXT_STEPS else None
+    return q if q is not None and q < 1.0 else None
+
+
+def printing_steps_mm(log: ProbeLog, rows: np.ndarray, cols=("X_mm", "Y_mm", "Z_mm")) -> np.ndarray:
+    """The step each column of ``cols`` was printed to over ``rows``, mm (0: exact, full precision).
+
+    The text's step where the log records one (:func:`_text_step`: ``48.000`` printed to 1 um); else the
+    values' (:func:`core.probelog.decimal_quantum`, the fewest decimals that write them), at most
+    :data:`ONE_LINE_STEP_MAX_MM` (the values alone read ``48.000`` as whole mm).
+    """
     from .probelog import decimal_quantum
 
-    q = min(decimal_quantum(printed_mm), ONE_LINE_STEP_MAX_MM)
+    out = []
+    for c in cols:
+        q = _text_step(log, c)
+        out.append(q if q is not None else min(decimal_quantum(log.col(c)[rows]), ONE_LINE_STEP_MAX_MM))
+    return np.array(out, dtype=float)
+
+
+def _one_line_tol(printed_mm: np.ndarray, spread_mm: float, q_text: float | None = None) -> tuple[float, str]:
+    """The one-line tolerance, mm, of coordinates printed to the step of ``printed_mm`` (the rows' nominal and
+    measured coordinates; ``q_text``, where given, the step the text printed the nominal columns to), and how it
+    reads; ``spread_mm`` the nominal centres' RMS spread (``ONE_LINE_REL``)."""
+    from .probelog import decimal_quantum
+
+    q = q_text if q_text is not None else min(decimal_quantum(printed_mm), ONE_LINE_STEP_MAX_MM)
     rel = ONE_LINE_REL * spread_mm
     if q > 0 and ONE_LINE_QUANTA * q >= rel:
         return ONE_LINE_QUANTA * q, f"{ONE_LINE_QUANTA:g} x the log's printing step {q:g} mm"
     return rel, f"{ONE_LINE_REL:g} of their spread"
 
 
-def _check_spans(kind: str, pn_mm: np.ndarray, p_mm: np.ndarray, n: np.ndarray, who: str) -> None:
+def _check_spans(kind: str, pn_mm: np.ndarray, p_mm: np.ndarray, n: np.ndarray, who: str,
+                 q_text: float | None = None) -> None:
     """Refuse a plane whose touches' nominal tip centres lie on one line in the surface, or a cylinder whose
     lie at one height along the axis the normals leave (review31 F1). The plan's nominals are free of the
     probing noise that hides the line in the measured points (the wall's 0.3 um along x against 80 mm: condition
@@ -259,7 +314,7 @@ def _check_spans(kind: str, pn_mm: np.ndarray, p_mm: np.ndarray, n: np.ndarray, 
     spread = float(np.sqrt(np.mean(np.einsum("ij,ij->i", X, X))))
     if not spread > 0:
         return                                   # one point repeated: the fit's own refusal says it
-    tol, how = _one_line_tol(np.concatenate([pn_mm, p_mm]), spread)
+    tol, how = _one_line_tol(np.concatenate([pn_mm, p_mm]), spread, q_text)
     if kind == "plane":
         nm = n.mean(axis=0)
         if np.linalg.norm(nm) > 0.5:             # the touches agree on a normal: the surface's directions
@@ -386,20 +441,21 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         r_st = said
     who = _which(log, rows) or "the touches"
     if kind in ("plane", "cylinder"):
-        _check_spans(kind, log.nominals_mm()[rows], p * 1e3, n, who)
+        qn = [_text_step(log, c) for c in ("Xn_mm", "Yn_mm", "Zn_mm")]   # the nominals' rounding, where the text says
+        _check_spans(kind, log.nominals_mm()[rows], p * 1e3, n, who, None if None in qn else max(qn))
     n_mean = n.mean(axis=0)
     if kind == "plane":
         f = F.fit_plane(p, normal_hint=n_mean if np.linalg.norm(n_mean) > 0.5 else None)
         pt = f.point - r_st * 1e-3 * f.normal
         vals = {"point_mm": (pt * 1e3).tolist(), "normal": f.normal.tolist()}
-        u = _u95_named(f, {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")})
+        units = {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")}
         res = f.residuals
     elif kind == "sphere":
         f = F.fit_sphere(p)
         side = _side(p, n, f.centre)
         R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
         vals = {"centre_mm": (f.centre * 1e3).tolist(), "radius_mm": R, "side": side}
-        u = _u95_named(f, {})
+        units = {}
         res = f.residuals
     elif kind == "circle":
         f = F.fit_circle_2d(p[:, :2])
@@ -407,7 +463,7 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
         vals = {"centre_mm": (f.centre * 1e3).tolist(), "radius_mm": R, "side": side,
                 "z_mm": float(np.mean(p[:, 2]) * 1e3)}
-        u = _u95_named(f, {})
+        units = {}
         res = f.residuals
     else:
         f = F.fit_cylinder(p)
@@ -415,11 +471,17 @@ def fit_log_feature(log: ProbeLog, kind: str, *, feature: str | None = None,
         R = f.radius * 1e3 + (-r_st if side == "outside" else r_st)
         vals = {"point_mm": (f.point * 1e3).tolist(), "axis": f.axis.tolist(), "radius_mm": R,
                 "side": side}
-        u = _u95_named(f, {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")})
+        units = {"tilt_u": (1e6, "urad"), "tilt_v": (1e6, "urad")}
         res = f.residuals
     ang = _normal_angles(kind, f, p, n, vals.get("side"))
     _check_normals(kind, ang, who, log, rows)
-    return FeatureReport(kind=kind, n=int(rows.size), rows=rows, values=vals, u95=u,
+    u_s = _u95_named(F.u95(f), units)
+    planar = kind == "circle"
+    q = printing_steps_mm(log, rows, ("X_mm", "Y_mm") if planar else ("X_mm", "Y_mm", "Z_mm"))
+    u_r = _u95_named(F.rounding_u95(f, p[:, :2] if planar else p, q * 1e-3 if ROUNDING_FLOOR else 0.0), units)
+    u = {k: v if np.isnan(v) else max(v, u_r[k]) for k, v in u_s.items()}
+    return FeatureReport(kind=kind, n=int(rows.size), rows=rows, values=vals, u95=u, u95_scatter=u_s,
+                         u95_rounding=u_r, printing_step_mm=tuple(q.tolist()),
                          form_um=F.form_deviation(f) * 1e6, rms_um=f.rms * 1e6,
                          residuals_um=np.asarray(res) * 1e6, stylus_r_mm=r_st, dof=int(f.dof),
                          stylus_r_source=where, log_stylus_r_mm=said, normal_angle_deg=float(np.max(ang)))

@@ -90,6 +90,8 @@ __all__ = [
     "fit_cylinder",
     "orient",
     "REFERENCE_DIRECTION",
+    "rounding_u95",
+    "ROUNDING_K",
 ]
 
 
@@ -1357,6 +1359,91 @@ def u95(fit) -> dict:
     k = coverage_factor(fit.dof)
     sd = np.sqrt(np.clip(np.diag(fit.cov), 0.0, None))
     return {name: float(k * s) for name, s in zip(fit.param_names, sd)}
+
+
+#: Coverage factor of :func:`rounding_u95`: the normal distribution's 95 % factor. The rounding bound is Type B
+#: (known, not estimated from the residuals: no Student t); the parameter's rounding error is a sum of rectangular
+#: terms, whose 95 % point lies at or below 1.96 standard deviations (1.645 for one term, 1.90 for two equal ones,
+#: 1.96 in the limit), so 1.96 covers it (one term: 0.566 q against its largest error 0.5 q).
+ROUNDING_K = 1.959963984540054
+
+
+def _rounding_gain(fit, P):
+    """The gain ``(k, n, d)`` of each fitted parameter to each coordinate of each point (``d(param) / d(p_ic)``
+    to first order), from the fit's own Jacobian at its solution: ``-(J^T J)^-1 J^T D``, ``D`` the gradient of
+    each residual row with respect to its point (the feature's unit normal there)."""
+    n = len(P)
+    if isinstance(fit, PlaneFit):
+        c0 = P.mean(axis=0)
+        _, J = _rj_plane(np.zeros(3), fit.basis, P - c0)
+        D, who = np.broadcast_to(fit.normal, (n, 3)), np.arange(n)
+    elif isinstance(fit, LineFit):
+        _, J = _rj_line(np.zeros(3), fit.basis, P - fit.point)
+        D = np.vstack([np.broadcast_to(fit.basis[0], (n, 3)), np.broadcast_to(fit.basis[1], (n, 3))])
+        who = np.concatenate([np.arange(n), np.arange(n)])
+    elif isinstance(fit, (Circle2Fit, SphereFit)):
+        _, J = _rj_ball(fit.centre, fit.radius, P)
+        D, who = -J[:, :-1], np.arange(n)
+    elif isinstance(fit, Circle3Fit):
+        _, J = _rj_circle3(fit.centre, fit.basis, fit.radius, P)
+        w = P - fit.centre
+        wp = w - np.outer(w @ fit.basis[2], fit.basis[2])
+        D = np.vstack([np.broadcast_to(fit.basis[2], (n, 3)), wp / np.linalg.norm(wp, axis=1)[:, None]])
+        who = np.concatenate([np.arange(n), np.arange(n)])
+    elif isinstance(fit, CylinderFit):
+        _, J = _rj_cylinder(fit.point, fit.basis, fit.radius, P)
+        w = P - fit.point
+        wp = w - np.outer(w @ fit.axis, fit.axis)
+        D, who = wp / np.linalg.norm(wp, axis=1)[:, None], np.arange(n)
+    else:
+        raise FitError(f"{type(fit).__name__}: no rounding bound for this kind of fit")
+    G = -np.linalg.pinv(J)                                   # (k, m): d(param) / d(residual row)
+    gain = np.zeros((J.shape[1], n, P.shape[1]))
+    np.add.at(gain, (slice(None), who), G[:, :, None] * D[None])   # rows of one point summed
+    return gain
+
+
+def rounding_u95(fit, points, step) -> dict:
+    """U95 of each parameter of a fit from its points' printing step, ``{param_name: U95}`` (m or rad).
+
+    Each coordinate ``c`` of each point carries its rounding, rectangular of half-width ``step_c / 2``
+    (:func:`core.probelog.rounding_sd`: ``step_c / sqrt(12)``). The rounding errors of different points are not
+    independent: a wall whose touches share one printed X shares its rounding (every touch 0.4 um off when the
+    wall lies at 48.0004 mm and the log prints 48.000), and no number of touches averages it out; nor is that
+    seen in the residuals (they are zero). The bound holds whatever their correlation: the standard deviation of
+    a sum is at most the sum of the terms' standard deviations, so a parameter with gain ``g_ic`` to coordinate
+    ``c`` of point ``i`` (:func:`_rounding_gain`, first order) has ``u <= sqrt(sum_c (sum_i |g_ic| u_c)^2)``,
+    the coordinates' steps independent of each other. It is reached where each coordinate's errors move
+    together (an axis-aligned wall's offset: ``u = step / sqrt(12)``); it is pessimistic by up to ``sqrt(n)``
+    where they are independent (a plane at a general tilt, noise of a step or more dithering the rounding), where
+    the residual scatter's Student-t U95 (:func:`u95`) already holds them and is the larger anyway when the
+    noise is a step or more. ``U95 = ROUNDING_K u``.
+
+    Parameters
+    ----------
+    fit : PlaneFit, LineFit, Circle2Fit, Circle3Fit, SphereFit or CylinderFit
+        A fit of ``points``.
+    points : (n, d) float
+        The points fitted, m.
+    step : float or (d,) float
+        The step each coordinate was printed to, m (0: exact).
+
+    Returns
+    -------
+    dict
+        ``{param_name: U95}`` in the parameter's unit; 0 for every parameter at step 0.
+    """
+    from .probelog import rounding_sd
+
+    P = np.asarray(points, dtype=float)
+    u_c = rounding_sd(np.broadcast_to(np.asarray(step, dtype=float), (P.shape[1],)))
+    if not np.all(np.isfinite(u_c) & (u_c >= 0)):
+        raise FitError(f"rounding bound: the printing step must be finite and >= 0, got {step!r}")
+    if not np.any(u_c > 0):
+        return {name: 0.0 for name in fit.param_names}
+    a = np.sum(np.abs(_rounding_gain(fit, P)), axis=1) * u_c      # (k, d): each coordinate's worst sum
+    u = np.sqrt(np.sum(a**2, axis=1))
+    return {name: float(ROUNDING_K * v) for name, v in zip(fit.param_names, u)}
 
 
 def form_deviation(fit) -> float:

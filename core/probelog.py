@@ -75,13 +75,15 @@ TEMP_RANGE_C = (-273.15, 1000.0)
 NUMBER = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\Z")
 
 #: The columns whose printed step the reader records (:attr:`ProbeLog.text_steps`; session 31, rank31): the nominal
-#: tip centres and normals, the numbers the planar design is built from (``core.baseline.precision_rank_tol``). A
-#: value round by design (``10.0000000``: 7 decimals written) is exact, not rounded: only the text says how many
-#: digits were printed. Counting costs up to 25 ns a cell (:func:`most_decimals`: one scan of each block's text for
-#: a longer run of decimals): on a 1e6-row log 0.16 s for these six columns printed to 7 decimals (2.3 % of its
+#: tip centres and normals, the numbers the planar design is built from (``core.baseline.precision_rank_tol``), and
+#: (session 32, fitq32) the measured tip centres, whose rounding ``vmt fit`` floors each U95 on
+#: (``core.features.printing_steps_mm``). A value round by design (``10.0000000``: 7 decimals written) is exact, not
+#: rounded: only the text says how many digits were printed (``48.000`` is printed to 1 um, where its value alone
+#: reads as whole mm). Counting costs up to 25 ns a cell (:func:`most_decimals`: one scan of each block's text for
+#: a longer run of decimals): on a 1e6-row log 0.16 s for the six nominal columns printed to 7 decimals (2.3 % of its
 #: read), 0.11 s written by vmt (1.2 %); every numeric column would cost some 6 %.
 #: None: no column's step recorded (every decision from the values, as before).
-TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
+TEXT_STEP_COLUMNS: tuple | None = ("Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz", "X_mm", "Y_mm", "Z_mm")
 
 #: :func:`most_decimals` counts up to this many decimals (a step of 1e-12 mm: 1e-14 of a 100 mm design, far below
 #: any rank tolerance); a column holding more (a shortest round-trip repr, ``71.70328770000001``) reads as printed
@@ -889,6 +891,15 @@ def decimal_quantum(v: np.ndarray, max_decimals: int = 9) -> float:
         if np.max(np.abs(s - np.round(s))) <= 1e-3:
             return 10.0 ** -k
     return 0.0
+
+
+def rounding_sd(q):
+    """The standard uncertainty of a value printed (or read) to the step ``q``: ``q / sqrt(12)``, the rounding
+    error's rectangular distribution of half-width ``q / 2`` (JCGM 100:2008, F.2.2.1, the resolution of an
+    indication). The one rule of every estimator that floors a scatter or an uncertainty on a printing step
+    (``core.causes.clock_sensors``: a temperature's scatter; ``core.features``: ``vmt fit``'s U95). Works on
+    floats and arrays alike."""
+    return q / np.sqrt(12.0)
 
 
 def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = None) -> dict:

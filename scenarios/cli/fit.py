@@ -65,6 +65,17 @@ def _radius_from(r) -> str:
     return f"--stylus-r-mm; the log says {r.log_stylus_r_mm:g} mm"
 
 
+def _u95_basis(r) -> str:
+    """``Student t, 6 dof; never below the rounding of X, Y, Z printed to 0.001 mm`` (the second part only for
+    a log printed to a step: review31e F3)."""
+    q = r.printing_step_mm
+    if not any(v > 0 for v in q):
+        return "Student t, %d dof" % r.dof
+    names = ", ".join("XYZ"[:len(q)])
+    steps = f"{q[0]:g}" if len(set(q)) == 1 else ", ".join(f"{v:g}" for v in q)
+    return f"Student t, {r.dof} dof; never below the rounding of {names} printed to {steps} mm"
+
+
 def _v(x, nd=6):
     return "(" + ", ".join(f"{c:.{nd}f}" for c in x) + ")"
 
@@ -95,7 +106,9 @@ def run(args) -> int:
               f"radius {v['radius_mm']:.4f} mm ({v['side']})")
     else:
         print(f"  centre {_v(v['centre_mm'], 4)} mm, radius {v['radius_mm']:.4f} mm ({v['side']})")
-    print("  U95 (Student t, %d dof): " % r.dof + ", ".join(f"{k} {u:.3g}" for k, u in r.u95.items()))
+    print("  U95 (" + _u95_basis(r) + "): " + ", ".join(
+        f"{k} {u:.3g}" + (" (printing step)" if r.u95_rounding and u == r.u95_rounding[k] > r.u95_scatter[k] else "")
+        for k, u in r.u95.items()))
     print(f"  {FORM[r.kind]} {r.form_um:.3f} um (peak-to-valley about the least-squares {r.kind}, "
           f"probing noise included), rms {r.rms_um:.3f} um")
     print(f"  the log's touch normals within {r.normal_angle_deg:.1f} deg of the fitted {r.kind}'s "
@@ -103,7 +116,8 @@ def run(args) -> int:
     if args.json:
         tg = log.col("target")[r.rows].astype(str).tolist()
         rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
-               "values": v, "u95": r.u95, "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
+               "values": v, "u95": r.u95, "u95_scatter": r.u95_scatter, "u95_rounding": r.u95_rounding,
+               "printing_step_mm": list(r.printing_step_mm), "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm, "stylus_r_source": r.stylus_r_source,
                "log_stylus_r_mm": r.log_stylus_r_mm, "normal_angle_deg": r.normal_angle_deg,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}

@@ -102,7 +102,9 @@ def test_the_reader_records_the_printed_step_of_the_nominal_and_normal_columns(m
     monkeypatch.setattr(P, "CHUNK_ROWS", 1)
     log = parse_probe_log(text, "steps.csv")
     assert log.text_steps == {"Xn_mm": pytest.approx(1e-7), "Yn_mm": pytest.approx(0.1), "Zn_mm": pytest.approx(1e-3),
-                              "nx": pytest.approx(1e-7), "ny": pytest.approx(0.1), "nz": 1.0}
+                              "nx": pytest.approx(1e-7), "ny": pytest.approx(0.1), "nz": 1.0,
+                              # (session 32, fitq32: the measured columns too, for vmt fit's rounding floor)
+                              "X_mm": 1.0, "Y_mm": 1.0, "Z_mm": 1.0}
     assert from_log(log).text_steps == log.text_steps
     assert log.select(np.array([0])).text_steps == log.text_steps
     assert make_log({k: log.columns[k] for k in log.columns}).text_steps == {}
