@@ -42,6 +42,21 @@ with the true error functions it agrees to <= 13 nm per point (against
 2.5 um for (2)). The noise-free accuracy is then the tables' interpolation
 of the truth, amplified by the plan's weakest direction.
 
+``G_A`` is the extraction's gain at the nominal touches on the nominal bar,
+taken from the normal shifts alone: the extraction (cylinder and plane fits,
+axes met with planes) is not linear, and the real bar's touches sit elsewhere
+(its calibrated deviations, the placement errors). Where the touches carry
+their features and nominal normals (``Measurement.feature``, ``n_A``) the
+Gauss-Newton can predict the points by the extraction itself::
+
+    tip_W(O_R; E) = tip_W(O_R; 0) + X(tip_W(q; E)) - X(tip_W(q; 0))   (3')
+
+``X`` the points of interest fitted from the touches
+(:func:`core.mfb.points_of_interest_batched`, the fits that gave ``O_R``),
+each touch at its actual tip: exact in the errors, the Jacobian (3)'s
+(:data:`EXACT_EXTRACTION`; session 32: docs/papers-mfb.md, "The noise-free
+residue").
+
 Each motion error of an axis is a look-up table on nodes along that axis,
 indexed by the axis (joint) position ``reading + J`` (the points of
 interest of the bars laid along it, as the reference stylus reaches them), interpolated by a C2
@@ -165,6 +180,15 @@ NODE_MARGIN_M = 0.040
 #: Eigenvalue ratio passed to core.lsq.solve: its default.
 SOLVE_RANK_TOL = RANK_TOL
 
+#: The Gauss-Newton's prediction of a measurement whose touches carry their features (``Measurement.feature``,
+#: ``n_A``): True, the exact extraction (3') of the module doc (the touches moved to their actual tips by the
+#: errors at the current estimate and the points of interest fitted again, :func:`core.mfb.points_of_interest_batched`);
+#: False, model (3)'s linear gain ``G_A`` taken at the nominal touches on the nominal bar. The Jacobian is (3)'s
+#: either way. The default of :func:`identify_volumetric` (``extraction=None``; :func:`reduced_design`, discovery's
+#: baseline, keeps (3) unless asked).
+#: Session 32 (mfbx32, docs/papers-mfb.md "The noise-free residue"): set by the study there.
+EXACT_EXTRACTION = True
+
 
 @dataclass(frozen=True)
 class Measurement:
@@ -199,6 +223,13 @@ class Measurement:
         Nominal stylus-centre contact points of those touches in A, m.
     d_A : (t, 3) float or None
         Their approach directions (unit, into the surface) in A.
+    feature : tuple of str or None
+        Each touch's feature id (``holeNN``, ``rodNN``, ``faceLNN``, ``faceRNN``: the probe log's
+        ``feature`` column), same order as ``q_R``.
+    n_A : (t, 3) float or None
+        Each touch's nominal outward normal in A (the probe log's normal, the extraction's hints).
+        With ``feature`` and ``n_A`` the identification can fit the points of interest again from
+        the touches moved by the errors (:data:`EXACT_EXTRACTION`, model (3') of the module doc).
     """
 
     name: str
@@ -213,6 +244,8 @@ class Measurement:
     q_R: np.ndarray | None = field(default=None, compare=False)
     c_A: np.ndarray | None = field(default=None, compare=False)
     d_A: np.ndarray | None = field(default=None, compare=False)
+    feature: tuple | None = field(default=None, compare=False)
+    n_A: np.ndarray | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -345,6 +378,17 @@ def _check(meas, nodes):
             raise ConfigError(f"measurement {m.name!r}: non-finite points of interest")
         if np.shape(m.T_W_A) != (4, 4):
             raise ConfigError(f"measurement {m.name!r}: T_W_A must be 4x4")
+        if (m.feature is None) != (m.n_A is None):
+            raise ConfigError(f"measurement {m.name!r}: feature and n_A go together (the exact extraction needs "
+                              f"both), got only {'feature' if m.n_A is None else 'n_A'}")
+        if m.feature is not None:
+            if not _has_touches(m):
+                raise ConfigError(f"measurement {m.name!r}: feature and n_A need the touches (q_R, c_A, d_A, G_A)")
+            t = len(np.asarray(m.q_R))
+            nA = np.asarray(m.n_A, float)
+            if len(m.feature) != t or nA.shape != (t, 3) or not np.all(np.isfinite(nA)):
+                raise ConfigError(f"measurement {m.name!r}: feature (t,) and n_A (t, 3) finite, one per touch "
+                                  f"(t = {t}), got {len(m.feature)} and {nA.shape}")
         # the axis positions the errors are evaluated at (reading + J) must lie within the
         # nodes (at most NODE_MARGIN_M beyond, along the end tangent)
         q = (np.asarray(m.q_R, float) if _has_touches(m) else O_R) + np.asarray(m.J_m, float)
@@ -398,6 +442,54 @@ def _has_touches(m) -> bool:
     return m.q_R is not None and m.c_A is not None and m.d_A is not None and m.G_A is not None
 
 
+def _has_features(m) -> bool:
+    """The touches carry what the exact extraction (3') needs: each one's feature id and nominal normal."""
+    return _has_touches(m) and m.feature is not None and m.n_A is not None
+
+
+#: :func:`_extracted`'s answers by the bytes of their inputs (the tips, each measurement's features, normals and
+#: holes): a pure function, met again with the same tips by the identification's last residual, :func:`lack_of_fit`
+#: and :func:`model_error_share` at the same theta, and by each new ``prep`` of the same measurements (the
+#: error-free tips); the arrays kept read-only.
+_EXTRACTED = Memo(8)
+
+
+def _extracted(prep, tips) -> dict:
+    """{measurement: its points of interest (k, 3), W} fitted from the tip positions ``tips`` (t_all, 3) of the
+    touches of every measurement that carries its features (:func:`core.mfb.points_of_interest_batched`, the
+    extraction of the readings: the same fits, in one batch; W is a rigid motion of R per measurement, so the
+    fits are the same; the nominal normals in W are the hints). Kept in :data:`_EXTRACTED`."""
+    import hashlib
+
+    b = prep.batch
+    idx = [i for i in b["at"] if prep[i]["features"]]
+    if not idx:
+        return {}
+    h = hashlib.blake2b(np.ascontiguousarray(tips, float).tobytes(), digest_size=20)
+    for i in idx:
+        pm = prep[i]
+        h.update(repr((i, b["at"][i], pm["name"], pm["holes"], pm["feature"])).encode())
+        h.update(np.ascontiguousarray(pm["n_W"], float).tobytes())
+    return _EXTRACTED.get_or_compute(h.digest(), lambda: _extract(prep, tips, idx))
+
+
+def _extract(prep, tips, idx) -> dict:
+    """:func:`_extracted` computed."""
+    from . import mfb
+
+    b = prep.batch
+    pois = mfb.points_of_interest_batched(
+        [(tips[b["at"][i]:b["at"][i] + len(prep[i]["qt"])], prep[i]["feature"], prep[i]["n_W"]) for i in idx])
+    out = {}
+    for i, poi in zip(idx, pois):
+        if tuple(poi.holes) != prep[i]["holes"]:
+            raise ConfigError(f"measurement {prep[i]['name']!r}: its touches' features give the points of holes "
+                              f"{list(poi.holes)}, its points of interest are of holes {list(prep[i]['holes'])}")
+        out[i] = poi.O_R
+        out[i].setflags(write=False)  # shared by every later lookup
+    return out
+
+
 def _prepare(m, chain, rotary_points, nodes) -> dict:
     """What :func:`_rows` computes of measurement ``m`` whatever theta: geometry, spline
     weights at the readings, the gain in W, the error-free tip positions (for the
@@ -409,7 +501,8 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
     rot = np.tile(np.asarray(m.rot_rad, float).reshape(1, -1), (k, 1)) if nr else None
     T = np.asarray(m.T_W_A, float)
     zA = T[:3, 2]
-    p = {"g": g, "q": q, "k": k, "rot": rot, "T": T, "touches": _has_touches(m),
+    p = {"g": g, "q": q, "k": k, "rot": rot, "T": T, "touches": _has_touches(m), "features": False,
+         "name": m.name, "holes": tuple(int(h) for h in m.holes),
          "P": np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3], "Pz": np.eye(3) - np.outer(zA, zA),
          "off": np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4}
     if p["touches"]:
@@ -420,6 +513,10 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
         p["W"] = _axis_weights(nodes, qt + np.asarray(g.J_m, float))
         p["d_W"] = np.asarray(m.d_A, float) @ T[:3, :3].T
         p["GW"] = np.einsum("ij,kjt->kit", T[:3, :3], np.asarray(m.G_A, float).reshape(k, 3, t))  # (k, 3, t)
+        p["features"] = _has_features(m)
+        if p["features"]:  # the extraction's inputs in W: each touch's feature and nominal normal (its hints)
+            p["feature"] = tuple(str(f) for f in m.feature)
+            p["n_W"] = np.asarray(m.n_A, float) @ T[:3, :3].T
     else:
         p["W"] = _axis_weights(nodes, q + np.asarray(g.J_m, float))
     return p
@@ -462,6 +559,7 @@ def _prepare_all(meas, chain, rotary_points, nodes) -> _Prepared:
                                ("tip0_t", "qt", b["at"], tip_W(g, b["qt"], b["rott"], None, J_m=b["J"]))):
         for i, r0 in at.items():
             prep[i][key] = tip[r0:r0 + len(prep[i][rows])]
+        b[key] = tip
     return prep
 
 
@@ -487,14 +585,22 @@ def _touch_kinematics(prep, theta, slices, exact, jacobian):
     return St, tip, b["at"]
 
 
-def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None):
+def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=True, prep=None, extraction=False):
     """Jacobian and residual of (1) at theta: target - prediction (``jacobian=False``:
     the residual alone, the same numbers, Jacobian None: no sensitivity evaluated).
-    ``prep``: :func:`_prepare` of each measurement (computed here when None)."""
+    ``prep``: :func:`_prepare` of each measurement (computed here when None). ``extraction`` (with
+    ``exact``): the prediction of a measurement whose touches carry their features by the exact
+    extraction (3') of the module doc, the Jacobian model (3)'s still."""
     Jrows, res, rows = [], [], []
     if prep is None:
         prep = _prepare_all(meas, chain, rotary_points, nodes)
     St_all, tip_all, at = _touch_kinematics(prep, theta, slices, exact, jacobian)
+    ext = {}
+    if exact and extraction and at:
+        b = prep.batch
+        if "fit0" not in b:  # the extraction of the error-free tips, once per prep (theta's change is fitted against it)
+            b["fit0"] = _extracted(prep, b["tip0_t"])
+        ext = _extracted(prep, tip_all)
     if jacobian and at:  # the touches' Jacobian rows (t_all, n), all measurements in one product
         Jt_all = _projected_error_jacobian(St_all, prep.batch["d_W"], prep.batch["W"], slices, n)
     for i, m in enumerate(meas):
@@ -509,7 +615,9 @@ def _rows(meas, chain, rotary_points, nodes, theta, slices, n, exact, jacobian=T
             if jacobian:
                 J = (GW.reshape(3 * k, t) @ Jt_all[rows_t]).reshape(k, 3, n)
             pred = pm["pred0"]
-            if exact:
+            if i in ext:  # (3'): the touches moved to their actual tips and fitted again
+                pred = pred + (ext[i] - prep.batch["fit0"][i])
+            elif exact:
                 e = np.einsum("tj,tj->t", d_W, tip_all[rows_t] - pm["tip0_t"])
                 pred = pred + GW @ e
         else:
@@ -802,6 +910,9 @@ class VolumetricResult:
         RMS of the residuals of (1) at the solution.
     K : (n, m) float
         The estimator at the solution: d theta / d y.
+    extraction : bool
+        The Gauss-Newton predicted the points by the exact extraction (3') where the touches carry their
+        features (:data:`EXACT_EXTRACTION`); its residuals (:func:`lack_of_fit`) are taken the same way.
     """
 
     theta: np.ndarray
@@ -811,6 +922,7 @@ class VolumetricResult:
     iterations: int
     rms_m: float
     K: np.ndarray = field(repr=False, compare=False)
+    extraction: bool = False
 
     def table(self, symbol: str) -> tuple[np.ndarray, np.ndarray]:
         """(nodes m, values m or rad) of one motion error; (empty, (1,)) for a squareness."""
@@ -840,8 +952,11 @@ class VolumetricResult:
 
 
 def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *, exact: bool = True,
-             max_iter: int = 10, tol_m: float = 1e-12, gauge=None) -> VolumetricResult:
+             max_iter: int = 10, tol_m: float = 1e-12, gauge=None, extraction: bool | None = None) -> VolumetricResult:
     """Identify the 21 errors from MFB measurements (eqs 8-12, then the exact model).
+
+    ``extraction``: the Gauss-Newton's prediction of the measurements whose touches carry their
+    features by the exact extraction (3') (None: :data:`EXACT_EXTRACTION`); the others by (3) or (2).
 
     Raises
     ------
@@ -850,17 +965,28 @@ def identify_volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, *
         conventions (named).
     """
     meas = list(meas)
+    ext = _extraction(extraction) and exact
     d, prep = _design(meas, chain, nodes, rotary_points_R_m, gauge)
-    theta, est, it, res = _identify(meas, chain, rotary_points_R_m, d, prep, exact, max_iter, tol_m)
+    theta, est, it, res = _identify(meas, chain, rotary_points_R_m, d, prep, exact, max_iter, tol_m, ext)
     m = d.A.shape[0]
     K = est.estimate(np.eye(m)) - est.estimate(np.zeros(m))[:, None]
     return VolumetricResult(theta, d, chain, dict(rotary_points_R_m or {}), it if exact else 0,
-                            float(np.sqrt(np.mean(res ** 2))), K)
+                            float(np.sqrt(np.mean(res ** 2))), K, ext)
 
 
-def _identify(meas, chain, rotary_points_R_m, d: VolumetricDesign, prep, exact: bool, max_iter: int, tol_m: float):
+def _extraction(extraction) -> bool:
+    """``extraction`` as a bool (None: :data:`EXACT_EXTRACTION`), refused by name otherwise."""
+    if extraction is None:
+        return bool(EXACT_EXTRACTION)
+    if not isinstance(extraction, (bool, np.bool_)):
+        raise ConfigError(f"extraction must be True, False or None (the module's default), got {extraction!r}")
+    return bool(extraction)
+
+
+def _identify(meas, chain, rotary_points_R_m, d: VolumetricDesign, prep, exact: bool, max_iter: int, tol_m: float,
+              extraction: bool = False):
     """(theta, estimator, iterations, residual of (1) at theta) of :func:`identify_volumetric` on its design ``d``
-    and :func:`_prepare` of each measurement ``prep``."""
+    and :func:`_prepare` of each measurement ``prep``; ``extraction``: the prediction by (3') (:func:`_rows`)."""
     if d.unseen.shape[1]:
         un = _unseen(d)
         raise IdentifiabilityError(f"the plan cannot identify {len(un)} combination(s) beyond the ISO "
@@ -875,7 +1001,8 @@ def _identify(meas, chain, rotary_points_R_m, d: VolumetricDesign, prep, exact: 
     if exact:
         n = len(theta)
         for it in range(1, max_iter + 1):
-            J, r, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True, prep=prep)
+            J, r, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True, prep=prep,
+                            extraction=extraction)
             # r = target - prediction; J = d(prediction - target)/d theta with the sign of (2)
             s2 = solve(J, r, C, np.zeros(len(C)), names=d.names, sigma=1e-6, covariance="none",
                 rank_tol=SOLVE_RANK_TOL)
@@ -885,11 +1012,11 @@ def _identify(meas, chain, rotary_points_R_m, d: VolumetricDesign, prep, exact: 
             if np.abs(s2.theta).max() < tol_m:
                 break
         _, res, _ = _rows(meas, chain, rotary_points_R_m, d.nodes, theta, d.slices, n, exact=True, jacobian=False,
-                          prep=prep)
+                          prep=prep, extraction=extraction)
     return theta, est, it, res
 
 
-def reduced_design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None) -> tuple:
+def reduced_design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=None, extraction=False) -> tuple:
     """The first-order problem (2) with its left side reduced to first order at the exact solution.
 
     Returns ``(design, theta)``: :func:`design`'s matrix ``A`` (the placements' columns at the nominal
@@ -910,6 +1037,11 @@ def reduced_design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=
     the drift's U95 on a campaign without placement draws 1.25 -> 2.06 ppm, its estimate moved 1.2 ppm).
     A first-order remainder of the turns is left: noise-free, seed 5, the drift within 0.06-0.22 ppm
     (0.04 without placement draws; 1.2-1.5 ppm without the reduction).
+
+    ``extraction``: the Gauss-Newton's prediction by the exact extraction (3') (None:
+    :data:`EXACT_EXTRACTION`); False by default: discovery's baseline (:func:`core.baseline.volumetric`) keeps
+    model (3)'s residuals until the exact extraction is measured on the discovery campaigns (session 32 measured
+    it on the identification alone).
     """
     from dataclasses import replace as _rep
 
@@ -917,7 +1049,7 @@ def reduced_design(meas, chain: str, nodes: dict, rotary_points_R_m=None, gauge=
     d, prep = _design(meas, chain, nodes, rotary_points_R_m, gauge)
     if d.unseen.shape[1]:
         return d, None
-    theta, _, _, r = _identify(meas, chain, rotary_points_R_m, d, prep, True, 10, 1e-12)
+    theta, _, _, r = _identify(meas, chain, rotary_points_R_m, d, prep, True, 10, 1e-12, _extraction(extraction))
     return _rep(d, y=r + d.A @ theta), theta
 
 
@@ -1502,7 +1634,7 @@ def _residual_noise(res: VolumetricResult, meas: list, sigma_probe_m: float, u_c
     prep = _prepare_all(meas, res.chain, res.rotary_points_R_m, d.nodes)
     if res.iterations:
         J, r, _ = _rows(meas, res.chain, res.rotary_points_R_m, d.nodes, res.theta, d.slices, len(res.theta),
-                        exact=True, prep=prep)
+                        exact=True, prep=prep, extraction=res.extraction)
     else:
         J, r = d.A, d.y - d.A @ res.theta
     blocks, B, Bp = _input_maps(res, meas, u_cal.shape[0])

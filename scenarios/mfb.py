@@ -1368,7 +1368,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
         machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None,
-        declared_ripple: dict | None = None) -> ScenarioResult:
+        declared_ripple: dict | None = None, extraction: bool | None = None) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -1452,6 +1452,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     progress : callable, optional
         ``progress(done, total)``: one step per simulated measurement, then
         the identification and the uncertainty.
+    extraction : bool, optional
+        The identification's Gauss-Newton predicts the points of interest by
+        the exact extraction (the touches, which carry their features and
+        normals, moved by the errors and fitted again) or by the linear gain
+        (default :data:`core.volumetric.EXACT_EXTRACTION`).
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -1583,12 +1588,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         idx = [h - 1 for h in poi.holes]
         meas.append(vol.Measurement(ms.name, ms.setup_key, poi.holes, poi.O_R, O_A_cal[idx], ms.T_W_A,
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,
-                                    c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A))
+                                    c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A,
+                                    feature=tuple(t.feature), n_A=pl_ok.wn_A))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
     if progress is not None:
         progress(steps - 2, steps)
-    res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact)
+    res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact, extraction=extraction)
     # reported in the ISO 230-1 form: straightness against the end-point
     # reference line (identified and injected alike)
     L_iso = vol.iso_map(res_g.design)
@@ -1821,6 +1827,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             "placements": len(plan.placements), "setups": len(plan.setups),
             "measurements": len(plan.measurements),
             "touches": int(n_touch), "model": "first order (eqs 8-12) + exact Gauss-Newton"
+                     + (" (the points fitted again from the touches at each step)" if res.extraction else "")
             if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,

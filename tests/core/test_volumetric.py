@@ -343,3 +343,77 @@ def test_model_error_share_enters_only_when_residuals_show_it_and_bad_input(meas
             vol.model_error_share(res, meas, *args, **kw)
     with pytest.raises(ConfigError, match="model_error"):
         vol.uncertainty(res, meas, 1e-7, u0, runs=0, model_error=np.zeros((3, 1)))
+
+
+def test_exact_extraction_predicts_the_points_fitted_from_the_moved_touches(meas3):
+    """(3') of the module doc, known answers: at theta = 0 the prediction is model (3)'s exactly (the fit of the
+    error-free tips against itself: the residuals the same doubles); at a theta of errors it is the points of
+    interest fitted (core.mfb.points_of_interest, the single fits) from each touch moved to its actual tip
+    tip_W(q; E), to the fits' convergence (the batched fits of the identification against the single ones: 1e-12 m
+    allowed, measured below 1e-14 m); and it differs from (3)'s linear gain by the extraction's nonlinearity, well
+    above that (nm at these micrometre errors, the gain taken at the nominal bar)."""
+    from core import mfb
+    from core.kinematics import tip_W
+
+    meas, chain, nodes, rp = meas3
+    assert all(vol._has_features(m) for m in meas)  # every source of the scenario carries them
+    d = vol.design(meas, chain, nodes, rp)
+    n = len(d.names)
+    prep = vol._prepare_all(meas, chain, rp, d.nodes)
+    z = np.zeros(n)
+    _, r3, _ = vol._rows(meas, chain, rp, d.nodes, z, d.slices, n, exact=True, jacobian=False, prep=prep)
+    _, r3x, _ = vol._rows(meas, chain, rp, d.nodes, z, d.slices, n, exact=True, jacobian=False, prep=prep,
+                          extraction=True)
+    assert np.array_equal(r3, r3x)
+    theta = np.zeros(n)
+    rng = np.random.default_rng(5)
+    for s in vol.MOTION:  # errors of a few um / 10 urad at every node
+        theta[d.slices[s]] = rng.standard_normal(d.slices[s].stop - d.slices[s].start) * 5e-6
+    _, r3, _ = vol._rows(meas, chain, rp, d.nodes, theta, d.slices, n, exact=True, jacobian=False, prep=prep)
+    _, r3x, _ = vol._rows(meas, chain, rp, d.nodes, theta, d.slices, n, exact=True, jacobian=False, prep=prep,
+                          extraction=True)
+    at, worst, r0 = 0, 0.0, 0
+    for i, m in enumerate(meas):
+        pm = prep[i]
+        W = vol._axis_weights(d.nodes, pm["qt"] + np.asarray(pm["g"].J_m, float))
+        vals = vol._values(theta, d.slices, W, len(pm["qt"]))
+        J = np.broadcast_to(pm["g"].J_m, pm["qt"].shape)
+        a = tip_W(pm["g"], pm["qt"], pm["rott"], vals, J_m=J)
+        b = tip_W(pm["g"], pm["qt"], pm["rott"], None, J_m=J)
+        want = pm["pred0"] + mfb.points_of_interest(a, m.feature, pm["n_W"]).O_R \
+            - mfb.points_of_interest(b, m.feature, pm["n_W"]).O_R
+        P, k = pm["P"], pm["k"]
+        r = P - want  # placements 0
+        r[pm["off"]] = r[pm["off"]] @ pm["Pz"].T
+        worst = max(worst, np.abs(r.ravel() - r3x[r0:r0 + 3 * k]).max())
+        r0 += 3 * k
+    assert worst < 1e-12, worst
+    diff = np.sqrt(np.mean((r3 - r3x) ** 2))
+    assert diff > 1e-10, diff  # (3) and (3') are not the same model at these errors
+
+
+def test_exact_extraction_bad_input(meas3):
+    """What (3') needs is checked by name: feature and n_A together, one per touch, finite, the touches' features
+    giving the measurement's own holes, and ``extraction`` a bool (or None, the module's default)."""
+    from dataclasses import replace
+
+    meas, chain, nodes, rp = meas3
+    m0 = meas[0]
+    t = len(m0.q_R)
+    cases = [
+        (replace(m0, n_A=None), "feature and n_A go together"),
+        (replace(m0, feature=m0.feature[:-1]), "one per touch"),
+        (replace(m0, n_A=np.vstack([m0.n_A[:-1], [np.nan, 0.0, 1.0]])), "one per touch"),
+        (replace(m0, q_R=None, feature=m0.feature), "need the touches"),
+    ]
+    for bad, msg in cases:
+        with pytest.raises(ConfigError, match=msg):
+            vol.identify_volumetric([bad] + list(meas[1:]), chain, nodes, rp, extraction=True)
+    # the first hole's touches renamed to a feature the extraction ignores: its points are another hole set
+    h = f"hole{m0.holes[0]:02d}"
+    other = tuple("other" if f == h else f for f in m0.feature)
+    assert other != m0.feature and len(other) == t
+    with pytest.raises(ConfigError, match=f"{m0.name}.*points of holes"):
+        vol.identify_volumetric([replace(m0, feature=other)] + list(meas[1:]), chain, nodes, rp, extraction=True)
+    with pytest.raises(ConfigError, match="extraction must be True, False or None"):
+        vol.identify_volumetric(meas, chain, nodes, rp, extraction="yes")
