@@ -420,9 +420,12 @@ def test_a_bar_turned_in_its_fixture_is_no_confident_dust(campaign, monkeypatch)
     concentration test (p 0.04 on review31c's seed 342) passed them as dust, `outlier` confident (14 of 20 of its
     campaigns; here too). Counted per placement (core.discover.VOLUMETRIC_OUTLIER_EVENTS) they are one event, which
     cannot tell dust from the bar moving: ambiguous, the moved bar named. Fails with the constant None and
-    VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT off (named, 3 events: the concentration test's count, which stays per row)."""
+    VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT off (named, 3 events: the concentration test's count, which stays per row).
+    Session 32's test of the outliers' measurements (VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE) hedges them too (the
+    turned bar moves every point of its later measurements): off here, to see these constants alone."""
     import core.discover as D
 
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE", False)
     rep = _discover(campaign, _bar_turned_after_first(campaign[0], 1.0)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
@@ -441,9 +444,12 @@ def test_a_bar_gradient_beside_outliers_is_no_confident_dust(campaign, monkeypat
     """review31c F2: a temperature gradient along the bar (1.5 um at the ends, changing per measurement) leaves
     four outliers in four placements and ``along_bar`` significant (p 5.6e-4) though below materiality (0.095 um):
     `outlier` was confident. Beside structure left significant the outliers may be its largest residuals:
-    ambiguous (core.discover.VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT). Fails with the constant off (named)."""
+    ambiguous (core.discover.VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT). Fails with the constant off (named). Session 32's
+    test of the outliers' measurements (VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE: VXa carries the gradient in its
+    other points) hedges them first: off here, to see this constant alone."""
     import core.discover as D
 
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE", False)
     rep = _discover(campaign, _bar_gradient(campaign[0], 1.5, 5)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
