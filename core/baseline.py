@@ -950,6 +950,10 @@ class VolumetricData:
         Per measurement: (rows (int array), GW (len(rows), t) gain of the
         touches' shifts along their approach into those rows (W), d_W
         (t, 3) approach directions in W).
+    x_bar : (n,) float
+        The row's component of the bar's axis (x_A in W): how much a point
+        moving along its bar moves this row (session 32; None where not
+        built).
     """
 
     design: object = field(repr=False)
@@ -966,6 +970,7 @@ class VolumetricData:
     g_perp: np.ndarray = field(repr=False)
     O_R: np.ndarray = field(repr=False)
     touch_cols: list = field(repr=False)
+    x_bar: np.ndarray | None = field(default=None, repr=False)
 
 
 #: Gravity in the machine's reference frame R, unit: ``-z_R``. An assumption: a vertical machine, whose R has its
@@ -1067,7 +1072,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     names = [m.name for m in meas]
     places = list(dict.fromkeys(m.placement for m in meas))
     styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
-    comp, mi, pl, st, t_s, s, sb, gp, O, touch, fold, point = [], [], [], [], [], [], [], [], [], [], [], []
+    comp, mi, pl, st, t_s, s, sb, gp, O, touch, fold, point, xb = [], [], [], [], [], [], [], [], [], [], [], [], []
     from .mfb import MFB
 
     half_bar = (MFB.n_holes - 1) / 2
@@ -1093,6 +1098,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
                 s.append((sA[p] - mid) / half)
                 sb.append((int(m.holes[p]) - 1 - half_bar) / half_bar if BAR_BENDING_ABOUT_BAR_MIDDLE else s[-1])
                 gp.append(g_perp[c])
+                xb.append(x_A[c])
                 O.append(np.asarray(m.O_R, float)[p])
                 fold.append(int(m.holes[p]) % VOLUMETRIC_FOLDS)
                 point.append(len(point) // 3)
@@ -1113,7 +1119,7 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     data = VolumetricData(d, comp, np.array(mi)[sel], tuple(names), tuple(places),
                           tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
                           np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(sb, float)[sel],
-                          np.array(gp)[sel], np.array(O)[sel], touch)
+                          np.array(gp)[sel], np.array(O)[sel], touch, np.array(xb, float)[sel])
     W = _point_whitening(touch, n, np.array(point)[sel])
     modes = np.eye(3)[comp]
     allm = (0, 1, 2)

@@ -3511,7 +3511,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     if OUTLIERS_NOT_GROSS_HEDGED and outliers.size:
         _doubt_outliers_not_gross(findings, st.sigma / UM)
     if bl.kind == "volumetric":
-        _volumetric_hedges(bl, findings, structure_e)
+        _volumetric_hedges(bl, findings, structure_e, st, settings)
         if VOLUMETRIC_IMPLAUSIBLE_UNEXPLAINED and not findings:
             made = _volumetric_implausible_unexplained(rejected, structure_e, st)
             if made is not None:
@@ -9576,6 +9576,105 @@ VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT = True
 #: (review31c's grid: 8 of 218, shares 0.81-1.00) keep their confidence.
 VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE = 0.75
 
+#: On the volumetric baseline the outlier finding asks whether the measurements its outliers fall in carry structure
+#: in their other rows (:func:`_measurement_carries`): dust in a hole moves that hole's point and nothing else, while
+#: a bar that deforms or moves within a measurement (a temperature gradient along it, a turn in its fixture) moves
+#: every point of that measurement, and the outliers are then only its largest residuals. Per measurement holding an
+#: outlier, its other rows (every outlier set aside) are tested for a line and a parabola along the bar in each W
+#: component (six columns, less what the model already spans) against the extended model, nested F, Bonferroni over
+#: the measurements tested at ``alpha_family``, and material (debiased, ``material_sigma`` noise sigmas per row of
+#: that measurement): where one does, a named outlier finding is ``ambiguous`` (``measurement_structure`` in its
+#: evidence). The planar analogue is the place test (:func:`_place_carries`). Only a hedge: no cause changes, and the
+#: named causes beside it are not touched (the key is not ``place_structure``). False: not asked (the behaviour
+#: before). Session 32 (mfbre32, docs/discovery.md "Session 32: MFB discovery re-measured with session 31's two
+#: changes together"): review31c's realistic bar with a 3 um temperature gradient along it (seed 315) read `outlier`
+#: named, its two outliers the ends of two standing bars' gradients along z, whose measurements' other rows carried
+#: the same parabola.
+VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE = True
+
+
+def _measurement_carries(bl, st, outliers, alpha: float, material_sigma: float) -> dict | None:
+    """The measurement holding outliers whose other rows carry structure along the bar, if any (volumetric only).
+
+    ``st`` the model the outliers were set aside from (its orthonormal basis on its rows ``st.rows``, their
+    residuals ``st.r``). For each measurement holding an outlier: the columns ``P_1(s)``, ``P_2(s)`` (``s`` the
+    row's position along the bar over the holes that measurement probed, -1..1) on that measurement's rows of each
+    W component (six columns, whitened as the rows are), the part outside the model's span, nested F test on the
+    kept rows, Bonferroni over the measurements tested at ``alpha``, material as :func:`_place_carries` asks
+    (debiased explained sum of squares at least ``material_sigma ** 2`` noise variances per kept row of that
+    measurement). Under dust in holes the other rows are the model's residuals like any: the test keeps its level
+    whichever measurement the dust picked. Returns ``{measurement, F, p_adjusted, k, explained_ss_um2}`` of the
+    first such measurement, or None.
+    """
+    d = bl.data
+    meas = np.asarray(d.meas)
+    kept = np.asarray(st.rows, int)
+    out = np.asarray(outliers, int)
+    tested = list(dict.fromkeys(meas[out].tolist()))
+    dof = len(kept) - st.Q.shape[1]
+    s = np.asarray(d.s, float)
+    comp = np.asarray(d.comp)
+    for m in tested:
+        on = meas == m
+        C = np.column_stack([(on & (comp == c)) * P for c in range(3) for P in (s, (3 * s ** 2 - 1) / 2)])
+        W = new_basis(st.Q, _white(bl, C)[kept])
+        k = W.shape[1]
+        if k == 0 or dof - k < 3:
+            continue
+        ss = float(np.sum((W.T @ st.r) ** 2))
+        s2 = (float(st.r @ st.r) - ss) / (dof - k)
+        F = (ss / k) / max(s2, 1e-300)
+        p = float(stats.f.sf(F, k, dof - k)) * len(tested)
+        if p < alpha and ss - k * s2 >= material_sigma ** 2 * s2 * int(np.sum(on[kept])):
+            return {"measurement": str(d.meas_names[m]), "F": F, "p_adjusted": min(p, 1.0), "k": int(k),
+                    "explained_ss_um2": (ss - k * s2) / UM ** 2}
+    return None
+
+
+#: On the volumetric baseline a named ``bar_bending`` is ``ambiguous`` where the points also move ALONG the bar, unevenly
+#: and differently in each measurement (:func:`_along_bar_carries`): a parabola of the position along the bar, one
+#: per measurement, along the bar's axis (the bar's own x_A in W), significant beside the extended model at
+#: ``alpha_family`` and material (debiased, ``material_sigma`` noise sigmas per row). Gravity bends a bar across its
+#: axis and moves no point along it; a temperature gradient along the bar, which changes from measurement to
+#: measurement, expands it unevenly along its axis, and its part outside the baseline can look like a sag (review31c's
+#: bar_gradient read `bar_bending` named once bend31's columns took the sag about the bar's middle). Only a hedge: no
+#: cause changes. False: not asked. Session 32 (mfbre32, docs/discovery.md "Session 32: MFB discovery re-measured
+#: with session 31's two changes together"): review31c's bar_gradient 1.5 um (bar as calibrated, seed 349) and 3 um
+#: (realistic bar, seed 311) named `bar_bending` (3.9 and 8.1 um) at rival shares 0.82 and 0.81 (the session-31
+#: hedge's cut 0.75), the along-bar parabolas F 68 and 29 beside them; right sags F 0.5-2.2.
+VOLUMETRIC_BENDING_ALONG_BAR_RIVAL = True
+
+
+def _along_bar_carries(bl, st, alpha: float, material_sigma: float) -> dict | None:
+    """Whether the points move along their bar, unevenly and per measurement, beside the model ``st``.
+
+    Columns: for each measurement, ``P_2(s)`` (``s`` the position along the bar over the holes it probed, -1..1)
+    times the row's component of the bar's axis (``VolumetricData.x_bar``), whitened as the rows are; their part
+    outside the model's span on its rows ``st.rows``; nested F test at ``alpha``; material where the debiased
+    explained sum of squares is at least ``material_sigma ** 2`` noise variances per row. Returns ``{F, p_value, k,
+    explained_ss_um2}`` where both hold, else None (also where the baseline has no bar axis per row).
+    """
+    d = bl.data
+    if getattr(d, "x_bar", None) is None:
+        return None
+    kept = np.asarray(st.rows, int)
+    meas = np.asarray(d.meas)
+    P2 = (3 * np.asarray(d.s, float) ** 2 - 1) / 2 * np.asarray(d.x_bar, float)
+    C = np.column_stack([(meas == m) * P2 for m in np.unique(meas)])
+    W = new_basis(st.Q, _white(bl, C)[kept])
+    k = W.shape[1]
+    dof = len(kept) - st.Q.shape[1]
+    if k == 0 or dof - k < 3:
+        return None
+    ss = float(np.sum((W.T @ st.r) ** 2))
+    s2 = (float(st.r @ st.r) - ss) / (dof - k)
+    F = (ss / k) / max(s2, 1e-300)
+    p = float(stats.f.sf(F, k, dof - k))
+    if p < alpha and ss - k * s2 >= material_sigma ** 2 * s2 * len(kept):
+        return {"F": F, "p_value": p, "k": int(k), "explained_ss_um2": (ss - k * s2) / UM ** 2}
+    return None
+
+
 #: On the volumetric baseline a ``lobing_per_stylus`` or ``thermal_drift`` finding on a plan with a placement measured
 #: more than once names those measurements (``moved_bar``), and an ambiguous one says in its reason that a bar moved
 #: in its fixture between them is its rival: a moved bar shifts a placement's later measurements alike, as a stylus
@@ -9624,7 +9723,7 @@ def _moved_bar_words(bl, rows) -> str | None:
     return "; ".join(parts)
 
 
-def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
+def _volumetric_hedges(bl, findings: list, structure_e: dict, st=None, settings=None) -> None:
     """The volumetric baseline's hedges of named findings, in place (session 31, review31c F1-F3, F5).
 
     - outliers all in one placement (:data:`VOLUMETRIC_OUTLIER_EVENTS`): ``ambiguous``; where that placement was
@@ -9634,11 +9733,25 @@ def _volumetric_hedges(bl, findings: list, structure_e: dict) -> None:
       (:data:`VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT`): ``ambiguous``, the covariates in the reason;
     - a ``lobing_per_stylus`` or ``thermal_drift`` (:data:`VOLUMETRIC_MOVED_BAR_RIVAL`) where the plan has a
       placement measured more than once: ``moved_bar`` names those measurements, and an ambiguous finding's reason
-      names the bar moved between them as its rival.
+      names the bar moved between them as its rival;
+    - a ``bar_bending`` beside points that move along their bar per measurement
+      (:data:`VOLUMETRIC_BENDING_ALONG_BAR_RIVAL`, with ``st`` the extended model's state and ``settings``):
+      ``ambiguous``, an uneven expansion along the bar its rival.
     """
     left = [w for w in (structure_e.get("not_counted") or ()) if w.get("reason") == "below_materiality"]
     for f in findings:
         ev = f.evidence
+        if (VOLUMETRIC_BENDING_ALONG_BAR_RIVAL and f.cause == "bar_bending" and st is not None
+                and settings is not None and ev.get("confidence") == "named"):
+            along = _along_bar_carries(bl, st, settings.alpha_family, settings.material_sigma)
+            if along is not None:
+                ev["along_bar_structure"] = _clean(along)
+                ev["confidence"] = "ambiguous"
+                ev["confidence_reason"] = (
+                    f"the points also move along their bar, unevenly and differently in each measurement (a parabola "
+                    f"per measurement along the bar's axis, F = {along['F']:.3g}, {fmt_p(along['p_value'])}, "
+                    f"{along['explained_ss_um2']:.3g} um^2): gravity bends a bar across it, so an uneven expansion "
+                    "along the bar (a temperature gradient along it) may be what this sag fits (out of the catalogue)")
         at = np.searchsorted(bl.rows, ev.get("rows") or [])
         if f.cause == causes_mod.OUTLIER and VOLUMETRIC_OUTLIER_EVENTS == "placement" and len(at):
             ev["placements"] = int(np.unique(np.asarray(bl.data.placement)[at]).size)
@@ -9807,6 +9920,14 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
                 "residuals, not dust")) if w)
     p_turn = None
     c = centred_turn(bl) if len(outliers) >= 2 else None
+    meas_struct = None
+    if bl.kind == "volumetric" and VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE:
+        meas_struct = _measurement_carries(bl, st, outliers, settings.alpha_family, settings.material_sigma)
+        if meas_struct is not None:
+            why = "; ".join(w for w in (why, (
+                f"the measurement {meas_struct['measurement']} they fall in carries structure along the bar in its "
+                f"other points ({meas_struct['explained_ss_um2']:.3g} um^2, {fmt_p(meas_struct['p_adjusted'])}): "
+                "they may be its largest residuals (the bar deformed or moved within it), not dust")) if w)
     if c is not None:
         p_turn = centred_turn_p(c, outliers, r0 / UM, np.random.default_rng([seed, 1]))
         if p_turn < settings.alpha_family:
@@ -9835,6 +9956,7 @@ def _outlier_finding(bl, outliers, st0, st, ranks, events, seed, settings, place
         **({"approach_sign_p": p_sign, "approach_sign_test": f"{test} along {ax}"} if p_sign is not None else {}),
         **({"ambiguous_with": alt} if alt else {}),
         **({"place_structure": _clean(place)} if place is not None else {}),
+        **({"measurement_structure": _clean(meas_struct)} if meas_struct is not None else {}),
         "confidence": "ambiguous" if why else "named", **({"confidence_reason": why} if why else {}),
         "test": "studentized deleted residual beyond the Bonferroni t bound"},
         {"n_outliers": int(len(outliers)), "max_deviation_um": float(np.max(np.abs(r0))) / UM},

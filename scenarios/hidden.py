@@ -922,11 +922,17 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
     elif cause == "bar_bending":
         params = {"midspan_sag_um": sag / UM}
 
+    from scenarios.mfb import PLANS
+
+    # the drift spans the campaign: tau from 0 at the first measurement to 1 at the plan's last (17 on the
+    # 3-axis plan, 15 on the 5-axis; until session 32 this was 17 on both, so a 5-axis drift reached 14/16 of
+    # the scales drawn in params)
+    n_meas = len(PLANS[name]().measurements) if name in PLANS else 0
+
     def hook(i, spec, art, probe, machine):
         times[spec.name] = i * MFB_MEASUREMENT_S
-        n_meas = 17
         if cause == "thermal_drift":
-            tau = i / (n_meas - 1)
+            tau = i / max(n_meas - 1, 1)
             errs = dict(machine.config.errors)
             for a, s_a in zip("XYZ", scale):
                 sym = f"E{a}{a}"

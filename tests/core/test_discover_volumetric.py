@@ -430,9 +430,12 @@ def test_a_bar_turned_in_its_fixture_is_no_confident_dust(campaign, monkeypatch)
     concentration test (p 0.04 on review31c's seed 342) passed them as dust, `outlier` confident (14 of 20 of its
     campaigns; here too). Counted per placement (core.discover.VOLUMETRIC_OUTLIER_EVENTS) they are one event, which
     cannot tell dust from the bar moving: ambiguous, the moved bar named. Fails with the constant None and
-    VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT off (named, 3 events: the concentration test's count, which stays per row)."""
+    VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT off (named, 3 events: the concentration test's count, which stays per row).
+    Session 32's test of the outliers' measurements (VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE) hedges them too (the
+    turned bar moves every point of its later measurements): off here, to see these constants alone."""
     import core.discover as D
 
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE", False)
     rep = _discover(campaign, _bar_turned_after_first(campaign[0], 1.0)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
@@ -451,9 +454,12 @@ def test_a_bar_gradient_beside_outliers_is_no_confident_dust(campaign, monkeypat
     """review31c F2: a temperature gradient along the bar (1.5 um at the ends, changing per measurement) leaves
     four outliers in four placements and ``along_bar`` significant (p 5.6e-4) though below materiality (0.095 um):
     `outlier` was confident. Beside structure left significant the outliers may be its largest residuals:
-    ambiguous (core.discover.VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT). Fails with the constant off (named)."""
+    ambiguous (core.discover.VOLUMETRIC_HEDGE_SIGNIFICANT_LEFT). Fails with the constant off (named). Session 32's
+    test of the outliers' measurements (VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE: VXa carries the gradient in its
+    other points) hedges them first: off here, to see this constant alone."""
     import core.discover as D
 
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE", False)
     rep = _discover(campaign, _bar_gradient(campaign[0], 1.5, 5)).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
@@ -574,3 +580,76 @@ def test_a_sag_on_the_realistic_bar_at_one_sigma_of_its_noise():
     assert rep["cause"] == "bar_bending", [(f["cause"], f["evidence"].get("text")) for f in rep["findings"]]
     p, u = rep["findings"][0]["params"], rep["findings"][0]["params_u95"]
     assert abs(p["midspan_sag_um"] - sag * 1e6) <= u["midspan_sag_um"], (p, u)
+
+
+def _dust(meas, um, seed):
+    """Dust in two holes: two points of interest, in two measurements drawn at random, each moved by ``um`` in a
+    random direction (the touch on the chip moved its hole's point); nothing else."""
+    rng = np.random.default_rng([seed, 32])
+    out = list(meas)
+    for i in rng.choice(len(meas), 2, replace=False):
+        O = np.array(meas[i].O_R, float)
+        h = rng.integers(len(O))
+        v = rng.normal(size=3)
+        O[h] += v * um * 1e-6 / np.linalg.norm(v)
+        out[i] = dataclasses.replace(meas[i], O_R=O)
+    return out
+
+
+def test_outliers_in_a_measurement_that_deforms_are_no_confident_dust(campaign, monkeypatch):
+    """Session 32 (mfbre32; review31c's realistic bar_gradient 3 um seed 315 read `outlier` named): a temperature
+    gradient along the bar (1.5 um, seed 7 of _bar_gradient) leaves four outliers in three placements beside an
+    `unexplained`; nothing significant is left beside them and they span events enough, so the session-31 hedges
+    let them stand as confident dust. The measurement VYc holding one of them carries a line and parabola along the
+    bar in its other points (F 5.6, p 7.5e-5 after Bonferroni, 1.35 um^2): they are that deformation's largest
+    residuals (core.discover.VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE): ambiguous. Fails with the constant off
+    (named). Dust in two holes (1.5 um, _dust seed 1) stays confident: the other points of its measurements are
+    clean."""
+    import core.discover as D
+
+    def outlier(meas):
+        rep = _discover(campaign, meas).to_report()
+        return next(f for f in rep["findings"] if f["cause"] == "outlier"), rep
+
+    f, rep = outlier(_bar_gradient(campaign[0], 1.5, 7))
+    assert f["evidence"]["confidence"] == "ambiguous", _said(rep)
+    assert f["evidence"]["measurement_structure"]["measurement"] == "VYc", f["evidence"]
+    assert "carries structure along the bar" in f["evidence"]["confidence_reason"]
+    f, rep = outlier(_dust(campaign[0], 1.5, 1))
+    assert f["evidence"]["confidence"] == "named" and "measurement_structure" not in f["evidence"], _said(rep)
+    monkeypatch.setattr(D, "VOLUMETRIC_OUTLIER_MEASUREMENT_STRUCTURE", False)
+    f, rep = outlier(_bar_gradient(campaign[0], 1.5, 7))
+    assert f["evidence"]["confidence"] == "named", _said(rep)
+
+
+def test_a_bar_gradient_read_as_a_sag_is_hedged_by_its_move_along_the_bar(campaign, monkeypatch):
+    """Session 32 (mfbre32): review31c's campaign 349 (mfb-3axis, the bar as calibrated) with its temperature gradient
+    along the bar (1.5 um at the ends, a factor 0.5-1 of either sign per measurement: _bar_gradient draws the same as
+    review31c's generator) reads `bar_bending` named, a 3.88 um sag, since session 31's bending columns about the
+    bar's middle (rival share 0.82, above the 0.75 that hedges a cause beside structure left). Gravity moves no point
+    along its bar; the gradient does, differently in each measurement: a parabola per measurement along the bar's
+    axis is significant beside the extended model (F 23.9, p 6e-36, 7.6 um^2), so the sag is ambiguous
+    (core.discover.VOLUMETRIC_BENDING_ALONG_BAR_RIVAL). Fails with the constant off (named). A sag (2 um about the
+    bar's middle, gravity through the table: _sagged) on the module's campaign stays named (2.11 um)."""
+    import core.discover as D
+    from scenarios.mfb import default_machine, run
+
+    res = run("mfb-3axis", seed=349, mc_runs=0, bar_cal_error=False)
+    cfg, _ = default_machine(res.plan.machine)
+    times = {m.name: i * MEAS_S for i, m in enumerate(res.meas)}
+    c = (res.meas, cfg.chain, res.plan.nodes, dict(cfg.rotary_points_R_m), times)
+
+    def first(camp, meas):
+        rep = _discover(camp, meas).to_report()
+        return rep["findings"][0], rep
+
+    f, rep = first(c, _bar_gradient(res.meas, 1.5, 349))
+    assert f["cause"] == "bar_bending" and f["evidence"]["confidence"] == "ambiguous", _said(rep)
+    assert f["evidence"]["along_bar_structure"]["p_value"] < 1e-6 and "along their bar" in f["evidence"][
+        "confidence_reason"]
+    f, rep = first(campaign, _sagged(campaign[0], 2e-6, "mfb-3axis"))
+    assert f["cause"] == "bar_bending" and f["evidence"]["confidence"] == "named", _said(rep)
+    assert "along_bar_structure" not in f["evidence"]
+    monkeypatch.setattr(D, "VOLUMETRIC_BENDING_ALONG_BAR_RIVAL", False)
+    f, rep = first(c, _bar_gradient(res.meas, 1.5, 349))
+    assert f["cause"] == "bar_bending" and f["evidence"]["confidence"] == "named", _said(rep)

@@ -83,3 +83,40 @@ def test_the_hidden_sag_is_what_the_bending_columns_fit(plan, seed):
     c = np.linalg.lstsq(np.hstack([b1.A @ N, E]), dy, rcond=None)[0]
     got = bending_bar_magnitudes({}, c[-2:], b1)["midspan_sag_um"]
     assert abs(got - params["midspan_sag_um"]) <= 0.02 * params["midspan_sag_um"], (got, params)
+
+
+@pytest.mark.parametrize("plan", ["mfb-3axis", "mfb-5axis"])
+def test_the_hidden_drift_spans_the_plans_own_measurements(plan, monkeypatch):
+    """The hidden thermal_drift's scales grow linearly from 0 at a plan's first measurement to the drawn change
+    (params, ppm) at its last: the hook's count of measurements is the plan's (17 on mfb-3axis, 15 on mfb-5axis).
+    scenarios.mfb.run is replaced by a loop that calls the hook on each of the plan's measurements with the plain
+    machine (no simulation) and the drift read from each returned machine's EXX, EYY, EZZ at 1 m. Tolerance 1e-9 ppm
+    (the polynomials' rounding). With the count hard-coded to 17 (before session 32) the 5-axis drift reached 14/16
+    of the change: this fails."""
+    import scenarios.mfb as M
+    from sim.machine import Machine
+
+    seen = {}
+
+    class _Res:
+        def __init__(self, p):
+            self.plan = p
+
+    def fake_run(name, *, seed, mc_runs, hook):
+        p = PLANS[name]()
+        cfg, _ = default_machine(p.machine)
+        base = Machine(cfg)
+        for k, ms in enumerate(p.measurements):
+            _, _, m = hook(k, ms, None, None, base)
+            seen[k] = [float((m.config.errors[s](np.ones(1)) - (base.config.errors[s](np.ones(1)) if s in
+                                                                base.config.errors else 0.0))[0]) * 1e6
+                       for s in ("EXX", "EYY", "EZZ")]
+        return _Res(p)
+
+    monkeypatch.setattr(M, "run", fake_run)
+    res, times, params = hidden_mfb("thermal_drift", 4000, name=plan)
+    n = len(PLANS[plan]().measurements)
+    assert sorted(seen) == list(range(n)) and len(times) == n
+    want = np.array([params[f"{a}_scale_change_ppm"] for a in "XYZ"])
+    for k in range(n):
+        assert np.allclose(seen[k], want * k / (n - 1), atol=1e-9, rtol=0), (plan, k, seen[k], want)
