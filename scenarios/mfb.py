@@ -1991,7 +1991,7 @@ def compensators(directory, name: str):
             doc = json.loads(read_text_file(pj, ConfigError, "compensation file"))
         except json.JSONDecodeError as e:
             raise ConfigError(f"{pj}: not JSON ({e.msg}, line {e.lineno})") from None
-        chain, tables, const, pts = comp_tables(doc)
+        chain, tables, const, pts = comp_tables(doc, source=str(pj))
         model = ErrorModel(chain, tables, const, pts)
         out["volumetric"] = lambda m: VolumetricCompensation(m, model)
     if not out:

@@ -121,16 +121,10 @@ _TOP = ("format", "name", "description", "base", "chain", "errors", "seed", "rip
 _PROBE = ("stylus_radius_mm", "pretravel_um", "pretravel_axial_um", "lobing", "noise_um", "max_travel_mm")
 
 
-#: Largest rotation error a machine file may give, urad (1 mrad, 206 arcsec, 1 mm per metre): vmt's estimators
-#: take the chain's angular errors to first order (identify's Jacobian, discover's baseline), and the neglected
-#: second-order term e^2/2 of a rotation e reaches 0.5 um a metre from its axis at 1 mrad, the size of the probing
-#: noise they are sized for; and 1 mrad over a 1 m lever is MAX_LINEAR_UM. Real machines' angular errors are tens
-#: of urad (the built-in machines' 'realistic' sets, 31 seeds each: at most 98.6 urad, EBX; 38.2 um, EXX).
-MAX_ANGULAR_URAD = 1000.0
-#: Largest translation error a machine file may give, um (1 mm): half the default 2 mm approach clearance of
-#: the plans (sim.plans.Plan.clearance_m), beyond which a planned touch starts in the material or misses,
-#: and tens of times a real machine's uncompensated positioning error (tens of um per metre of stroke).
-MAX_LINEAR_UM = 1000.0
+# The bounds on an error's size live in core.iso (one place: the vmt-comp/1 reader, core.volumetric.comp_tables,
+# applies them too); re-exported here, where they were first set (review30 F3).
+MAX_ANGULAR_URAD = iso.MAX_ANGULAR_URAD
+MAX_LINEAR_UM = iso.MAX_LINEAR_UM
 #: The bounds hold at the start and after this many hours of the error's thermal drift (a working shift).
 BOUND_AFTER_H = 8.0
 #: Positions along the stroke where an error is checked against its bound (a period of 1/1000 of the stroke
