@@ -132,6 +132,39 @@ BOUND_AFTER_H = 8.0
 BOUND_SAMPLES = 2001
 
 
+def bound_problem(s, f: ErrorFunction, stroke, what: str = "a machine file's") -> str | None:
+    """What is wrong with error ``f`` of symbol ``s`` (core.iso.Symbol) over ``stroke`` (its axis's, SI), or
+    None: not finite, or beyond :data:`MAX_ANGULAR_URAD` / :data:`MAX_LINEAR_UM` at the start or after
+    :data:`BOUND_AFTER_H` hours, either direction. The one check of a machine file's errors and of a vcmm
+    task's declared limits (``what`` names whose: review32d F4, a task's 1e12 um/m slope was refused only
+    later, naming neither file nor key)."""
+    U, bound = ("urad", MAX_ANGULAR_URAD) if s.angular else ("um", MAX_LINEAR_UM)
+    pos = np.linspace(stroke[0], stroke[1], BOUND_SAMPLES)
+    peak = 0.0
+    at = when = 0.0
+    for t_s in (0.0, BOUND_AFTER_H * 3600.0):
+        for d in (1.0, -1.0):
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = np.asarray(f(pos, np.full(pos.shape, t_s), np.full(pos.shape, d)), float) / 1e-6
+            i = int(np.argmax(np.abs(v)))
+            if not np.isfinite(v[i]):
+                return f"not finite on the {s.axis} stroke"
+            if abs(v[i]) > abs(peak):
+                peak, at, when = v[i], pos[i], t_s
+    if abs(peak) <= bound * (1 + 1e-9):     # the bound itself loads (units scaled to SI and back)
+        return None
+    rot = s.axis in iso.ROTARY_AXES
+    where = f"{at / DEG:g} deg" if rot else f"{at / MM:g} mm"
+    why = ("vmt's models take angular errors to first order: the neglected e^2/2 is 0.5 um a metre "
+           "from the axis at 1000 urad" if s.angular else
+           "half the plans' 2 mm approach clearance; a real machine's are tens of um")
+    at_ = [] if s.location else [f"at {s.axis} {where}"]
+    at_ += [f"after {BOUND_AFTER_H:g} h"] if when else []
+    return (f"reaches {peak:.6g} {U}" + (f" ({', '.join(at_)})" if at_ else "")
+            + f": beyond the +-{bound:g} {U} {what} " + ("rotation" if s.angular else "translation")
+            + f" error may have ({why})")
+
+
 class MachineFileError(ConfigError):
     """A machine file that cannot be read: the file, the key, what is wrong."""
 
@@ -600,28 +633,9 @@ class _Reader(KeyReader):
 
     def bounded(self, key, s, f: ErrorFunction, stroke) -> None:
         """Refuse an error that leaves :data:`MAX_ANGULAR_URAD` / :data:`MAX_LINEAR_UM` over the stroke."""
-        U, bound = ("urad", MAX_ANGULAR_URAD) if s.angular else ("um", MAX_LINEAR_UM)
-        pos = np.linspace(stroke[0], stroke[1], BOUND_SAMPLES)
-        peak = 0.0
-        for t_s in (0.0, BOUND_AFTER_H * 3600.0):
-            for d in (1.0, -1.0):
-                v = np.asarray(f(pos, np.full(pos.shape, t_s), np.full(pos.shape, d)), float) / 1e-6
-                i = int(np.argmax(np.abs(v)))
-                if not np.isfinite(v[i]):
-                    self.fail(key, f"not finite on the {s.axis} stroke")
-                if abs(v[i]) > abs(peak):
-                    peak, at, when = v[i], pos[i], t_s
-        if abs(peak) > bound * (1 + 1e-9):     # the bound itself loads (units scaled to SI and back)
-            rot = s.axis in iso.ROTARY_AXES
-            where = f"{at / DEG:g} deg" if rot else f"{at / MM:g} mm"
-            why = ("vmt's models take angular errors to first order: the neglected e^2/2 is 0.5 um a metre "
-                   "from the axis at 1000 urad" if s.angular else
-                   "half the plans' 2 mm approach clearance; a real machine's are tens of um")
-            at_ = [] if s.location else [f"at {s.axis} {where}"]
-            at_ += [f"after {BOUND_AFTER_H:g} h"] if when else []
-            self.fail(key, f"reaches {peak:.6g} {U}" + (f" ({', '.join(at_)})" if at_ else "")
-                           + f": beyond the +-{bound:g} {U} a machine file's "
-                           + ("rotation" if s.angular else "translation") + f" error may have ({why})")
+        said = bound_problem(s, f, stroke)
+        if said is not None:
+            self.fail(key, said)
 
     def thermal(self, key, s, U, t) -> Drift:
         allowed = [f"offset_{U}_per_h", "tau_h", f"offset_{U}_per_K", "temperature_h", "temperature_K"]
