@@ -560,3 +560,39 @@ def test_pin_circle_report_is_a_report_folder_like_every_other(files, capsys):
     assert main(["scenario", "pin-circle", "--report", str(mine)]) == 2
     one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entry but no report of vmt")
     assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("workers", [None, "2"])
+def test_sigterm_puts_the_outputs_back_and_says_so_as_ctrl_c_does(tmp_path, workers):
+    """review32d F6: SIGTERM to `vmt design` (timeout(1), a CI cancel, systemd) ended it with status -15, no
+    word, and its pre-existing --json kept aside in a `.vmt-kept.keep.json.*` folder left behind. Every command
+    now takes SIGTERM as Ctrl-C: the output put back, one line, status 143; with --workers the workers stop too."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--plan-only", "--out", str(plan)]) == 0
+    keep = tmp_path / "keep.json"
+    keep.write_text("PRE-EXISTING\n")
+    cmd = [sys.executable, "-m", "scenarios.cli", "design", str(plan), "--n-angles", "4", "--json", str(keep)]
+    proc = subprocess.Popen(cmd + (["--workers", workers] if workers else []), cwd=root, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        t0 = time.monotonic()
+        while not list(tmp_path.glob(".vmt-kept.keep.json.*")):   # the run has begun: its output is kept aside
+            assert proc.poll() is None and time.monotonic() - t0 < 120, proc.communicate()
+            time.sleep(0.05)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "vmt design: terminated (SIGTERM)", err
+    assert "Traceback" not in err
+    assert keep.read_text() == "PRE-EXISTING\n" and not list(tmp_path.glob(".vmt-kept*"))
