@@ -110,7 +110,7 @@ def _run(args, bar) -> int:
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it
     G = res.G
-    print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
+    print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {_setups_said(res, t)};"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
           f" scale {'known' if res.scale_known else 'unknown'}")
     _dominant(res, t, file_row)
@@ -146,6 +146,19 @@ def _run(args, bar) -> int:
 
     print(f"wrote {said(out)}")
     return 0
+
+
+def _setups_said(res, t) -> str:
+    """"4 C angles" when each set-up is at its own C angle (as before), else "4 set-ups at 1 C angle": the
+    distinct C positions of the touches, to 1e-9 deg (review32d F8: 4 set-ups all at C = 0 were said to be
+    "4 C angles")."""
+    import numpy as np
+
+    from core.exceptions import counted
+
+    n = len(res.design.setup_ids)
+    c = np.unique(np.round(np.degrees(np.asarray(t.rot_rad, float)[:, 2]), 9))
+    return counted(n, "C angle") if c.size == n else f"{counted(n, 'set-up')} at {counted(int(c.size), 'C angle')}"
 
 
 def _dominant(res, t, file_row) -> None:

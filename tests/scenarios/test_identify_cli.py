@@ -345,3 +345,21 @@ def test_dominant_rows_known_answers():
     r[4] = 0.9 * DOMINANT_Z * np.sqrt(np.mean(np.delete(r, [17, 4]) ** 2))
     assert dominant_rows(r).tolist() == [17]               # under 10 times the others' RMS: not named
     assert dominant_rows(np.zeros(5)).size == 0 and dominant_rows([1.0, 100.0]).size == 0
+
+
+def test_set_ups_at_one_c_angle_are_not_said_to_be_four_angles(tmp_path, rng, capsys):
+    """review32d F8: a log whose four set-ups all read C = 0 was said to hold "4 C angles" (the set-ups
+    counted); the distinct C positions are counted now, the usual wording kept when each set-up has its own."""
+    from core.probelog import read_probe_log
+
+    log_p = tmp_path / "camp.csv"
+    write_campaign(log_p, rng)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log_p), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    assert "368 touches, 92 targets, 4 C angles;" in capsys.readouterr().out
+    log = read_probe_log(log_p)
+    log.columns["C_deg"][:] = 0.0
+    same = tmp_path / "samec.csv"
+    write_probe_log(same, log)
+    assert main(["identify", str(same), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    assert "368 touches, 92 targets, 4 set-ups at 1 C angle;" in capsys.readouterr().out
