@@ -372,6 +372,8 @@ def _parse(text: str, source: str) -> dict:
 def loads(text: str, source: str = "<machine file>") -> MachineSpec:
     """Read a machine file's text (see the module doc)."""
     doc = _parse(text, source)
+    if not doc:  # said as the logs say it (review32d F11: was "chain: missing: the ISO 10791 chain")
+        raise MachineFileError(f"{source}: empty file" + (" (comments only)" if text.strip() else ""))
     return _Reader(source).spec(doc)
 
 
