@@ -345,10 +345,10 @@ def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
         "x_s": {"value": 1.0}}})
     link = files["dir"] / "null-link"
     link.symlink_to("/dev/null")
-    assert main(["bench", "--out", str(link)]) == 0, capfd.readouterr().err
+    assert main(["bench", "--json", str(link)]) == 0, capfd.readouterr().err
     assert link.is_symlink() and os.readlink(link) == "/dev/null"
     out = files["dir"] / "r.json"
-    assert main(["bench", "--out", str(out)]) == 0
+    assert main(["bench", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["figures"] == {"x_s": {"value": 1.0}}
     assert out.read_text() == json.dumps(json.loads(out.read_text()), indent=2, sort_keys=True)   # as before
 
@@ -494,7 +494,8 @@ def test_dash_where_it_cannot_be_standard_output_is_refused(files, capsys, monke
 
 
 def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkeypatch):
-    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out,
+    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out (--json
+    since session 32),
     here /dev/stdout, the pipe's writing end. Refused before any benchmark runs: --merge needs a
     regular file to read back."""
     import subprocess
@@ -505,14 +506,14 @@ def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkey
 
     monkeypatch.setattr(sb, "run_all", lambda only=None, **kw: pytest.fail("a benchmark ran"))
     for out, kind in (("-", "symbolic link (standard output)"), ("/dev/null", "character device")):
-        assert main(["bench", "--merge", "--out", out]) == 2
-        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --out, so --out must be a "
+        assert main(["bench", "--merge", "--json", out]) == 2
+        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --json, so --json must be a "
                          f"regular file; {'/dev/stdout' if out == '-' else out} is a {kind}")
     root = Path(__file__).resolve().parents[2]
-    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --out - | cat", shell=True, cwd=root,
+    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --json - | cat", shell=True, cwd=root,
                        capture_output=True, text=True, timeout=120,
                        env={**os.environ, "PYTHONPATH": str(root)})
-    assert "--merge reads the figures to keep from --out" in p.stderr, p.stderr
+    assert "--merge reads the figures to keep from --json" in p.stderr, p.stderr
 
 
 def test_a_failed_run_puts_back_the_users_earlier_outputs(files, capsys, monkeypatch):
