@@ -51,7 +51,7 @@ test-controllers: $(STAMP)
 
 # every figure with its same-run reference (bench/results.json), and README's table generated from it
 bench: $(STAMP)
-	$(VENV)/bin/vmt bench --out bench/results.json --readme README.md
+	$(VENV)/bin/vmt bench --json bench/results.json --readme README.md
 
 # README's performance table again from the last bench/results.json (no benchmark run)
 bench-table: $(STAMP)

@@ -163,6 +163,19 @@ def _all_symbols() -> list[Symbol]:
     return out
 
 
+#: Largest rotation error a machine file (sim.machinefile) or a vmt-comp/1 table (core.volumetric.comp_tables)
+#: may give, urad (1 mrad, 206 arcsec, 1 mm per metre): vmt's estimators take the chain's angular errors to first
+#: order (identify's Jacobian, discover's baseline), and the neglected second-order term e^2/2 of a rotation e
+#: reaches 0.5 um a metre from its axis at 1 mrad, the size of the probing noise they are sized for; and 1 mrad
+#: over a 1 m lever is MAX_LINEAR_UM. Real machines' angular errors are tens of urad (the built-in machines'
+#: 'realistic' sets, 31 seeds each: at most 98.6 urad, EBX; 38.2 um, EXX).
+MAX_ANGULAR_URAD = 1000.0
+#: Largest translation error a machine file or a vmt-comp/1 table may give, um (1 mm): half the default 2 mm
+#: approach clearance of the plans (sim.plans.Plan.clearance_m), beyond which a planned touch starts in the
+#: material or misses, and tens of times a real machine's uncompensated positioning error (tens of um per metre
+#: of stroke).
+MAX_LINEAR_UM = 1000.0
+
 #: Every symbol, in the one fixed order vmt uses for parameter vectors.
 SYMBOLS: tuple[Symbol, ...] = tuple(_all_symbols())
 _BY_NAME = {s.name: s for s in SYMBOLS}

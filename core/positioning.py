@@ -99,6 +99,15 @@ TARGETS_RULE_MM = 2000.0
 N_MIN = 2
 #: Targets closer than this (file unit) are the same target P_i.
 TARGET_TOL = 1e-6
+#: Largest positional deviation x_ij = P_ij - P_i said without a warning, per file unit: 1 mm, 0.0573 deg (the
+#: machine file's bounds on a translation / rotation error, core.iso.MAX_LINEAR_UM / MAX_ANGULAR_URAD: tens of
+#: times a real machine's uncompensated positioning error, tens of um per metre or tens of arc seconds). A
+#: larger deviation is warned of, naming the row and value (review32d F2: a reading typed 100 m off its target,
+#: or deviations in um written in measured_mm, were evaluated to R 1.8e8 um without a word); it is refused when
+#: it also reaches half the spacing of the targets (:func:`arrange`): the reading then lies nearer another
+#: target than its own, which no positioning error does, a unit or typing slip. The reader's own bound (100 m,
+#: core.probelog.value_range) is on the positions themselves, a physical size, and says nothing of this.
+DEVIATION_WARN = {"mm": 1e-3 * 1000.0, "deg": 1000.0e-6 * 180.0 / math.pi}
 #: Report scale per file unit: mm -> µm, deg -> arc seconds.
 REPORT_UNIT = {"mm": ("um", 1e3), "deg": ("arcsec", 3600.0)}
 CYCLE_KINDS = ("linear", "pilgrim")
@@ -1036,6 +1045,40 @@ class PositioningTest:
         return np.sum(~np.isnan(self.dev_down), axis=1)
 
 
+def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, targets: np.ndarray) -> list:
+    """Refuse a valid reading whose deviation is beyond :data:`DEVIATION_WARN` and at least half the spacing
+    of its target's neighbours (nearer another target than its own: a unit or typing slip, not an error of
+    positioning); return the warnings for one beyond :data:`DEVIATION_WARN` only (row, value, count)."""
+    u, src = log.unit, log.source
+    dev = log.deviation[rows]
+    warn = DEVIATION_WARN[u]
+    gap = np.diff(targets)  # the targets sorted; each target's nearest neighbour's distance
+    near = np.full(targets.size, np.inf)
+    if gap.size:
+        near[:-1] = gap
+        near[1:] = np.minimum(near[1:], gap)
+    half = 0.5 * near[groups]
+    big = np.abs(dev) > warn
+    if not big.any():
+        return []
+    said = f"{1e3 * warn:g} um" if u == "mm" else f"{warn:.4g} deg ({warn * 3600.0:.0f} arcsec)"
+    refuse = big & (np.abs(dev) >= half)
+    if refuse.any():
+        k = int(np.argmax(refuse))
+        r = int(rows[k])
+        raise PositioningLogError(
+            f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} "
+            f"is {dev[k]:.6g} {u} off it, nearer another target than its own (half the targets' spacing "
+            f"there: {half[k]:.6g} {u}): no positioning error, a unit or typing slip (deviations in the "
+            f"measured column? the wrong unit?)" + (f"; {int(refuse.sum())} such readings" if refuse.sum() > 1
+                                                     else ""))
+    k = int(np.argmax(big))
+    r = int(rows[k])
+    return [f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} is "
+            f"{dev[k]:.6g} {u} off it, beyond {said}, tens of times a machine's positioning error (a unit or "
+            f"typing slip?); {counted(int(big.sum()), 'reading')} so far off, every figure includes them"]
+
+
 def arrange(log: PositioningLog) -> PositioningTest:
     """Arrange the valid readings of ``log`` per target and direction.
 
@@ -1066,6 +1109,7 @@ def arrange(log: PositioningLog) -> PositioningTest:
     m = targets_arr.size
     if m < 2:
         raise PositioningLogError(f"{src}: one target only ({targets_arr[0]:g} {u}); ISO 230-2 needs several")
+    far = _deviation_check(log, rows, groups, targets_arr)
     cycles = np.unique(log.cycle[rows])
     col_of = {int(c): k for k, c in enumerate(cycles)}
     n = cycles.size
@@ -1079,7 +1123,7 @@ def arrange(log: PositioningLog) -> PositioningTest:
         D[i, c] = dev[r]
         T[i, c] = t[r]
         R[i, c] = r
-    warnings = list(log.warnings)
+    warnings = list(log.warnings) + far
     for d, name in ((1, "+"), (-1, "-")):
         cnt = np.sum(~np.isnan(out[d][0]), axis=1)
         other = np.sum(~np.isnan(out[-d][0]), axis=1)

@@ -58,6 +58,15 @@ TARGET_TOL_MM = 1e-6
 #: Largest length (mm) a position may have: 100 m, beyond any machine tool's
 #: stroke. It keeps absurd values (1e200) from overflowing the analysis.
 LENGTH_MAX_MM = 1e5
+#: How far a touch may lie from its nominal, mm (review32d F3; the GRBL and LinuxCNC imports' bounds, kept here
+#: in one place, hardware.transcript re-exports them): along its approach line within ALIGN_ALONG_MM (room for a
+#: probing stroke, clearance + overtravel, of up to 10 mm; vmt's programs use 2 + 2 mm: a stylus moved along its
+#: line triggers between the stroke's ends), and off that line by at most ALIGN_LATERAL_MM (the axes move along
+#: the line, so a reading is on it to the controller's rounding, microns; a neighbouring row's line is
+#: millimetres away). The probe-log reader warns of a valid touch beyond either, naming its row (a typed reading,
+#: a row of another target); the imports refuse a report beyond them (it is not that row's touch).
+ALIGN_ALONG_MM = 10.0
+ALIGN_LATERAL_MM = 0.5
 #: Largest stylus tip radius (mm): discs and balls on long styli stay under 50 mm.
 STYLUS_R_MAX_MM = 100.0
 #: Largest time since the campaign started (s): 1e10 s is 317 years, so a Unix
@@ -900,6 +909,33 @@ def rounding_sd(q):
     (``core.causes.clock_sensors``: a temperature's scatter; ``core.features``: ``vmt fit``'s U95). Works on
     floats and arrays alike."""
     return q / np.sqrt(12.0)
+def far_from_nominal(log: ProbeLog, ok: np.ndarray, lines: np.ndarray | None, warnings: list) -> None:
+    """Warn of valid touches farther from their nominal than a probe triggers (:data:`ALIGN_ALONG_MM` along the
+    approach line, :data:`ALIGN_LATERAL_MM` off it), naming the first row of each kind and counting the rest
+    (review32d F3: a reading typed 10 mm off along its normal gave identify a residual of 364 um blamed on the
+    error tables, and one 99.9 m off sideways passed unseen). Warned, not refused: the log's own format bounds
+    only the values, a program with a longer stroke may write a far touch, and identify names the rows that
+    dominate its residual (:func:`core.selfcal.dominant_rows`)."""
+    c = log.columns
+    v = np.column_stack([c[k] - c[kn] for k, kn in (("X_mm", "Xn_mm"), ("Y_mm", "Yn_mm"), ("Z_mm", "Zn_mm"))])
+    d = (np.column_stack([c["dx"], c["dy"], c["dz"]]) if "dx" in c
+         else -np.column_stack([c["nx"], c["ny"], c["nz"]]))
+    with np.errstate(invalid="ignore"):
+        along = np.einsum("ij,ij->i", v, d)
+        lat = np.linalg.norm(v - along[:, None] * d, axis=1)
+        far = (ok & (np.abs(along) > ALIGN_ALONG_MM), ok & (lat > ALIGN_LATERAL_MM))
+    for bad, what, bound, why in (
+            (far[0], "along its approach line (dx,dy,dz)", ALIGN_ALONG_MM, "a probing stroke's ends may be from it"),
+            (far[1], "off its approach line", ALIGN_LATERAL_MM, "a reading may lie off the line the axes moved on")):
+        if bad.any():
+            r = int(np.argmax(bad))
+            how = (f"{along[r]:+.6g} mm from its nominal {what}" if bound == ALIGN_ALONG_MM else
+                   f"{lat[r]:.6g} mm {what} through its nominal")
+            more = f" ({counted(int(bad.sum()) - 1, 'more such touch', 'more such touches')})" if bad.sum() > 1 else ""
+            warnings.append(
+                f"{_where(log.source, r, lines)}: set-up {c['setup'][r]!r}, target {c['target'][r]!r}: reading "
+                f"{_xyz((c['X_mm'][r], c['Y_mm'][r], c['Z_mm'][r]))} mm lies {how}, beyond the {bound:g} mm {why}"
+                f"{more}: a typed or misplaced reading? Every fit takes it as a touch")
 
 
 def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = None) -> dict:
@@ -1030,6 +1066,8 @@ def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = N
                     more = f" (and {rows.size - 1} more such invalid rows)" if rows.size > 1 else ""
                     warnings.append(f"{_where(src, r, lines)}: status {c['status'][r]!r}: {what}{more}; kept (the "
                                     "row is not a touch, no analysis reads its direction)")
+    if warnings is not None and not plan and n:
+        far_from_nominal(log, ok, lines, warnings)
     # time never goes backwards (rows are in the order touches happened)
     t = c["t_s"]
     back = step_back(t)

@@ -400,6 +400,8 @@ def loads_task(text: str, source: str = "<task>") -> Task:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise TaskFileError(f"{source}: not TOML: {e}") from None
+    if not doc:  # said as the logs say it (review32d F11: was "features: missing")
+        raise TaskFileError(f"{source}: empty file" + (" (comments only)" if text.strip() else ""))
     return _TaskReader(source).task(doc)
 
 

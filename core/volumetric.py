@@ -1500,8 +1500,13 @@ def tables_json(res: VolumetricResult, unc: VolumetricUncertainty | None = None,
     return json.dumps(doc, indent=1)
 
 
-def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
+def comp_tables(doc: dict, source: str = "vmt-comp/1") -> tuple[str, dict, dict, dict]:
     """The errors a controller corrects, from a ``vmt-comp/1`` document (SI).
+
+    ``source`` names the document in every refusal (the file's path; review32d F1: the refusals named no
+    file). Every value is bounded as a machine file's errors are (:data:`core.iso.MAX_LINEAR_UM`,
+    :data:`core.iso.MAX_ANGULAR_URAD`): the identified values and, for a straightness, the table with its
+    end-point line restored (what the controller corrects), each refusal naming the key.
 
     Returns
     -------
@@ -1518,38 +1523,90 @@ def comp_tables(doc: dict) -> tuple[str, dict, dict, dict]:
     Raises
     ------
     ConfigError
-        Not ``vmt-comp/1``, an error missing, or tables of the wrong shape.
+        Not ``vmt-comp/1``, an error missing, a value not a number or beyond the bound, or tables of the
+        wrong shape: one line naming ``source`` and the key.
     """
+    def fail(msg):
+        raise ConfigError(f"{source}: {msg}")
+
+    def numbers(key, x):
+        try:  # a string or a nested list in the file was a traceback (review32d F1)
+            v = np.asarray(x, float)
+        except (TypeError, ValueError):
+            fail(f"{key} must be a number or a list of numbers, got {_short(x)}")
+        if v.ndim > 1:
+            fail(f"{key} must be a number or a list of numbers, got a nested list")
+        return np.atleast_1d(v)
+
     if not isinstance(doc, dict) or doc.get("format") != "vmt-comp/1":
-        raise ConfigError("compensation tables: not a vmt-comp/1 document (format missing or other)")
-    errs = doc.get("errors")
+        fail("not a vmt-comp/1 document (format missing or other)")
+    if "errors" not in doc:
+        fail("'errors' missing")
+    errs = doc["errors"]
     if not isinstance(errs, dict):
-        raise ConfigError("vmt-comp/1: 'errors' missing")
+        fail(f"'errors' must be an object of the 21 errors by symbol, got {type(errs).__name__}")
     tables, const = {}, {}
     for s in MOTION + SQUARENESS:
-        e = errs.get(s)
-        if not isinstance(e, dict) or "identified" not in e:
-            raise ConfigError(f"vmt-comp/1: error {s} missing")
-        v = np.asarray(e["identified"], float) * 1e-6
+        key = f"errors.{s}"
+        if s not in errs:
+            fail(f"{key} missing")
+        e = errs[s]
+        if not isinstance(e, dict):
+            fail(f"{key} must be an object (identified, nodes_mm, ...), got {type(e).__name__}")
+        if "identified" not in e:
+            fail(f"{key}.identified missing")
+        v = numbers(f"{key}.identified", e["identified"])
+        sym = iso.symbol(s)
+        U, bound = ("urad", iso.MAX_ANGULAR_URAD) if sym.angular else ("um", iso.MAX_LINEAR_UM)
         f = e.get("applied_factor", 1.0)  # absent: applied whole (files before session 26)
         if isinstance(f, bool) or not isinstance(f, (int, float)) or not 0.0 <= f <= 1.0:
-            raise ConfigError(f"vmt-comp/1: {s}.applied_factor must be a number from 0 to 1, got {f!r}")
-        v = v * float(f)  # the fraction of the identified error the controller corrects (core.comprule)
+            fail(f"{key}.applied_factor must be a number from 0 to 1, got {f!r}")
         if s in SQUARENESS:
             if v.shape != (1,) or not np.isfinite(v).all():
-                raise ConfigError(f"vmt-comp/1: {s}.identified must be one finite value")
-            const[s] = float(v[0])
+                fail(f"{key}.identified must be one finite value")
+        else:
+            x = numbers(f"{key}.nodes_mm", e.get("nodes_mm", []))
+            if x.shape != v.shape or len(x) < 1 or not (np.isfinite(x).all() and np.isfinite(v).all()):
+                fail(f"{key}: nodes_mm and identified must be equal-length finite lists")
+            if np.any(np.diff(x) <= 0):
+                fail(f"{key}.nodes_mm must be strictly increasing")
+        _within(fail, f"{key}.identified", v, U, bound)
+        v_si = v * 1e-6 * float(f)  # the fraction of the identified error the controller corrects (core.comprule)
+        if s in SQUARENESS:
+            const[s] = float(v_si[0])
             continue
-        x = np.asarray(e.get("nodes_mm", []), float) * 1e-3
-        if x.ndim != 1 or x.shape != v.shape or len(x) < 1 or not (np.isfinite(x).all() and np.isfinite(v).all()):
-            raise ConfigError(f"vmt-comp/1: {s}: nodes_mm and identified must be equal-length finite lists")
-        if np.any(np.diff(x) <= 0):
-            raise ConfigError(f"vmt-comp/1: {s}.nodes_mm must be strictly increasing")
+        x_si = x * 1e-3
         if "end_point_slope_urad" in e:
-            v = v + float(f) * float(e["end_point_slope_urad"]) * 1e-6 * (x - x[0])
-        tables[s] = (x, v)
-    pts = {a: tuple(float(c) * 1e-3 for c in p) for a, p in (doc.get("rotary_points_mm") or {}).items()}
-    return str(doc.get("chain", "")), tables, const, pts
+            k = numbers(f"{key}.end_point_slope_urad", e["end_point_slope_urad"])
+            if k.shape != (1,) or not np.isfinite(k).all():
+                fail(f"{key}.end_point_slope_urad must be one finite value")
+            _within(fail, f"{key}.end_point_slope_urad", v + float(k[0]) * 1e-3 * (x - x[0]), U, bound,
+                    " (the table with its end-point line restored)")
+            v_si = v_si + float(f) * float(k[0]) * 1e-6 * (x_si - x_si[0])
+        tables[s] = (x_si, v_si)
+    pts = doc.get("rotary_points_mm") or {}
+    if not isinstance(pts, dict):
+        fail(f"rotary_points_mm must be an object axis -> [x, y, z] mm, got {type(pts).__name__}")
+    out = {}
+    for a, p in pts.items():
+        q = numbers(f"rotary_points_mm.{a}", p)
+        if q.shape != (3,) or not np.isfinite(q).all():
+            fail(f"rotary_points_mm.{a} must be three finite numbers (mm)")
+        out[a] = tuple(float(c) * 1e-3 for c in q)
+    return str(doc.get("chain", "")), tables, const, out
+
+
+def _short(x) -> str:
+    r = repr(x)
+    return r if len(r) <= 40 else r[:37] + "..."
+
+
+def _within(fail, key, v, U, bound, what="") -> None:
+    """Refuse values beyond +-``bound`` (the machine file's, core.iso), naming the key and the peak."""
+    i = int(np.argmax(np.abs(v)))
+    if abs(v[i]) > bound * (1 + 1e-9):
+        fail(f"{key} reaches {v[i]:.6g} {U}{what}: beyond the +-{bound:g} {U} a compensation table's error "
+             f"may have (as a machine file's: core.iso.MAX_{'ANGULAR_URAD' if U == 'urad' else 'LINEAR_UM'})")
 
 
 # --------------------------------------------------------------------------- lack of fit (session 29)

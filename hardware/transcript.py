@@ -51,6 +51,7 @@ import numpy as np
 
 from core.atomic import head_problem, input_problem
 from core.exceptions import PlanError, ProbeLogError, counted
+from core.probelog import ALIGN_ALONG_MM as _ALIGN_ALONG_MM, ALIGN_LATERAL_MM as _ALIGN_LATERAL_MM
 from core.probelog import ProbeLog, csv_lines
 
 from .campaign import log_from_plan
@@ -314,11 +315,12 @@ def _stop(s: Session, plan: ProbeLog) -> tuple[str, str, str]:
 #: report reached the transcript but before its log line was synced repeats the touch on ``--resume``) and the
 #: first dropped. A miss's report (``[PRB:...:0]``) is not checked: after ALARM:5 GRBL repeats the last
 #: successful probe's position in it.
-ALIGN_LATERAL_MM = 0.5
-#: The along-the-line bound when the program's stroke is not known, mm: room for a stroke (clearance +
-#: overtravel) of up to 10 mm; 2 + 2 mm by default. A longer stroke's far touches are refused by it, and a short
-#: one's neighbouring row along the same line may pass it: give the import the stroke (session 29).
-ALIGN_ALONG_MM = 10.0
+#: The along-the-line bound when the program's stroke is not known, mm (:data:`ALIGN_ALONG_MM`): room for a stroke
+#: (clearance + overtravel) of up to 10 mm; 2 + 2 mm by default. A longer stroke's far touches are refused by it,
+#: and a short one's neighbouring row along the same line may pass it: give the import the stroke (session 29).
+#: Both bounds live in core.probelog (one place: the probe-log reader warns of a touch beyond them, review32d F3).
+ALIGN_LATERAL_MM = _ALIGN_LATERAL_MM
+ALIGN_ALONG_MM = _ALIGN_ALONG_MM
 #: Added to a known stroke, mm: a touch lies between the stroke's ends (``-clearance`` .. ``+overtravel`` along
 #: the line, so within clearance + overtravel of the nominal); this much more for the reports' rounding (GRBL
 #: 0.001 mm) and the servo's following error along the line (microns).

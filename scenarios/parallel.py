@@ -73,8 +73,18 @@ def pmap(func, tasks, *, dask: str | None = None, workers: int | None = None) ->
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as ex:
-            return list(ex.map(func, tasks))
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"))
+        try:
+            out = list(ex.map(func, tasks))
+        except BaseException:
+            # interrupted (Ctrl-C, or SIGTERM sent to this process alone: scenarios.cli.guard): the workers stop
+            # now, the tasks not begun are dropped, rather than the exit waiting for every task (session 32)
+            for proc in list((getattr(ex, "_processes", None) or {}).values()):
+                proc.terminate()
+            ex.shutdown(wait=False, cancel_futures=True)
+            raise
+        ex.shutdown(wait=True)
+        return out
     return [func(t) for t in tasks]
 
 

@@ -273,9 +273,39 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
         if ax not in nominal.chain.axes:
             raise ConfigError(f"{task.source}: declared.{t.symbol}: axis {ax} is not in machine {cfg.name}'s "
                               f"chain {cfg.chain}")
+    declared_bounded(task, cfg.strokes)
     return Setting(task, rows, Xn_R, n_R, rot, tuple(sdfs), group, cfg, probe, sources,
                    tuple(txt["target"][used].tolist()), np.mean(p_W - r * n_W, axis=0), state, form_u,
                    touch_times(plan, task, used))
+
+
+def declared_bounded(task: V.Task, strokes: dict) -> None:
+    """Refuse a declared limit whose error leaves the machine file's bounds over the axis's stroke (the one
+    check, :func:`sim.machinefile.bound_problem`), naming the task file and the key: each term at its bound,
+    then each symbol's terms summed at their worst (review32d F4: ``slope_um_per_m = 1e12`` was refused
+    only later, as touch 0's early trigger, naming neither file nor key)."""
+    from sim.errorfuncs import Constant, Periodic, Polynomial
+    from sim.machinefile import bound_problem
+
+    by_sym: dict = {}
+    for t in task.declared:
+        s = V.iso.symbol(t.symbol)
+        U = "urad" if s.angular else "um"
+        key = {"constant": f"constant_{U}", "slope": f"slope_{U}_per_m", "quadratic": f"quadratic_{U}_per_m2",
+               "periodic": f"periodic_{U}"}[t.term]
+        f = (Periodic(t.bound, t.period) if t.term == "periodic" else
+             Constant(t.bound) if t.power == 0 else Polynomial((0.0,) * t.power + (t.bound,)))
+        said = bound_problem(s, f, strokes[s.axis], "a declared")
+        if said is not None:
+            raise ConfigError(f"{task.source}: declared.{t.symbol}.{key}: at its bound {said}")
+        c = by_sym.setdefault(t.symbol, [0.0, 0.0, 0.0])   # constant (and periodic amplitude), slope, quadratic
+        c[0 if t.term == "periodic" else t.power] += t.bound
+    for sym, (c0, c1, c2) in by_sym.items():
+        s = V.iso.symbol(sym)
+        for sign in (1.0, -1.0):   # the slope's worst side of the stroke
+            said = bound_problem(s, Polynomial((c0, sign * c1, c2)), strokes[s.axis], "a declared")
+            if said is not None:
+                raise ConfigError(f"{task.source}: declared.{sym}: its terms at their bounds, summed, {said}")
 
 
 #: Largest |n_z| (R) of a circle's or line's nominal normal at a tilted rotary position (A or B not 0):

@@ -121,21 +121,48 @@ _TOP = ("format", "name", "description", "base", "chain", "errors", "seed", "rip
 _PROBE = ("stylus_radius_mm", "pretravel_um", "pretravel_axial_um", "lobing", "noise_um", "max_travel_mm")
 
 
-#: Largest rotation error a machine file may give, urad (1 mrad, 206 arcsec, 1 mm per metre): vmt's estimators
-#: take the chain's angular errors to first order (identify's Jacobian, discover's baseline), and the neglected
-#: second-order term e^2/2 of a rotation e reaches 0.5 um a metre from its axis at 1 mrad, the size of the probing
-#: noise they are sized for; and 1 mrad over a 1 m lever is MAX_LINEAR_UM. Real machines' angular errors are tens
-#: of urad (the built-in machines' 'realistic' sets, 31 seeds each: at most 98.6 urad, EBX; 38.2 um, EXX).
-MAX_ANGULAR_URAD = 1000.0
-#: Largest translation error a machine file may give, um (1 mm): half the default 2 mm approach clearance of
-#: the plans (sim.plans.Plan.clearance_m), beyond which a planned touch starts in the material or misses,
-#: and tens of times a real machine's uncompensated positioning error (tens of um per metre of stroke).
-MAX_LINEAR_UM = 1000.0
+# The bounds on an error's size live in core.iso (one place: the vmt-comp/1 reader, core.volumetric.comp_tables,
+# applies them too); re-exported here, where they were first set (review30 F3).
+MAX_ANGULAR_URAD = iso.MAX_ANGULAR_URAD
+MAX_LINEAR_UM = iso.MAX_LINEAR_UM
 #: The bounds hold at the start and after this many hours of the error's thermal drift (a working shift).
 BOUND_AFTER_H = 8.0
 #: Positions along the stroke where an error is checked against its bound (a period of 1/1000 of the stroke
 #: is sampled at its peaks within 1 %).
 BOUND_SAMPLES = 2001
+
+
+def bound_problem(s, f: ErrorFunction, stroke, what: str = "a machine file's") -> str | None:
+    """What is wrong with error ``f`` of symbol ``s`` (core.iso.Symbol) over ``stroke`` (its axis's, SI), or
+    None: not finite, or beyond :data:`MAX_ANGULAR_URAD` / :data:`MAX_LINEAR_UM` at the start or after
+    :data:`BOUND_AFTER_H` hours, either direction. The one check of a machine file's errors and of a vcmm
+    task's declared limits (``what`` names whose: review32d F4, a task's 1e12 um/m slope was refused only
+    later, naming neither file nor key)."""
+    U, bound = ("urad", MAX_ANGULAR_URAD) if s.angular else ("um", MAX_LINEAR_UM)
+    pos = np.linspace(stroke[0], stroke[1], BOUND_SAMPLES)
+    peak = 0.0
+    at = when = 0.0
+    for t_s in (0.0, BOUND_AFTER_H * 3600.0):
+        for d in (1.0, -1.0):
+            with np.errstate(over="ignore", invalid="ignore"):
+                v = np.asarray(f(pos, np.full(pos.shape, t_s), np.full(pos.shape, d)), float) / 1e-6
+            i = int(np.argmax(np.abs(v)))
+            if not np.isfinite(v[i]):
+                return f"not finite on the {s.axis} stroke"
+            if abs(v[i]) > abs(peak):
+                peak, at, when = v[i], pos[i], t_s
+    if abs(peak) <= bound * (1 + 1e-9):     # the bound itself loads (units scaled to SI and back)
+        return None
+    rot = s.axis in iso.ROTARY_AXES
+    where = f"{at / DEG:g} deg" if rot else f"{at / MM:g} mm"
+    why = ("vmt's models take angular errors to first order: the neglected e^2/2 is 0.5 um a metre "
+           "from the axis at 1000 urad" if s.angular else
+           "half the plans' 2 mm approach clearance; a real machine's are tens of um")
+    at_ = [] if s.location else [f"at {s.axis} {where}"]
+    at_ += [f"after {BOUND_AFTER_H:g} h"] if when else []
+    return (f"reaches {peak:.6g} {U}" + (f" ({', '.join(at_)})" if at_ else "")
+            + f": beyond the +-{bound:g} {U} {what} " + ("rotation" if s.angular else "translation")
+            + f" error may have ({why})")
 
 
 class MachineFileError(ConfigError):
@@ -345,6 +372,8 @@ def _parse(text: str, source: str) -> dict:
 def loads(text: str, source: str = "<machine file>") -> MachineSpec:
     """Read a machine file's text (see the module doc)."""
     doc = _parse(text, source)
+    if not doc:  # said as the logs say it (review32d F11: was "chain: missing: the ISO 10791 chain")
+        raise MachineFileError(f"{source}: empty file" + (" (comments only)" if text.strip() else ""))
     return _Reader(source).spec(doc)
 
 
@@ -606,28 +635,9 @@ class _Reader(KeyReader):
 
     def bounded(self, key, s, f: ErrorFunction, stroke) -> None:
         """Refuse an error that leaves :data:`MAX_ANGULAR_URAD` / :data:`MAX_LINEAR_UM` over the stroke."""
-        U, bound = ("urad", MAX_ANGULAR_URAD) if s.angular else ("um", MAX_LINEAR_UM)
-        pos = np.linspace(stroke[0], stroke[1], BOUND_SAMPLES)
-        peak = 0.0
-        for t_s in (0.0, BOUND_AFTER_H * 3600.0):
-            for d in (1.0, -1.0):
-                v = np.asarray(f(pos, np.full(pos.shape, t_s), np.full(pos.shape, d)), float) / 1e-6
-                i = int(np.argmax(np.abs(v)))
-                if not np.isfinite(v[i]):
-                    self.fail(key, f"not finite on the {s.axis} stroke")
-                if abs(v[i]) > abs(peak):
-                    peak, at, when = v[i], pos[i], t_s
-        if abs(peak) > bound * (1 + 1e-9):     # the bound itself loads (units scaled to SI and back)
-            rot = s.axis in iso.ROTARY_AXES
-            where = f"{at / DEG:g} deg" if rot else f"{at / MM:g} mm"
-            why = ("vmt's models take angular errors to first order: the neglected e^2/2 is 0.5 um a metre "
-                   "from the axis at 1000 urad" if s.angular else
-                   "half the plans' 2 mm approach clearance; a real machine's are tens of um")
-            at_ = [] if s.location else [f"at {s.axis} {where}"]
-            at_ += [f"after {BOUND_AFTER_H:g} h"] if when else []
-            self.fail(key, f"reaches {peak:.6g} {U}" + (f" ({', '.join(at_)})" if at_ else "")
-                           + f": beyond the +-{bound:g} {U} a machine file's "
-                           + ("rotation" if s.angular else "translation") + f" error may have ({why})")
+        said = bound_problem(s, f, stroke)
+        if said is not None:
+            self.fail(key, said)
 
     def thermal(self, key, s, U, t) -> Drift:
         allowed = [f"offset_{U}_per_h", "tau_h", f"offset_{U}_per_K", "temperature_h", "temperature_K"]

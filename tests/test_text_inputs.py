@@ -109,6 +109,29 @@ def test_the_commands_say_it_in_one_line(tmp_path, capsys):
     assert readme.read_text() == "x\n"
 
 
+def test_apply_comp_names_the_file_and_key_of_a_malformed_table(tmp_path, capsys):
+    """review32d F1: a vmt-comp/1 table with a string in 'identified' was a traceback (exit 1); now one line
+    naming the file and the key, exit 2, before any simulation."""
+    import json
+
+    from scenarios.cli import main
+
+    comp = tmp_path / "comp"
+    comp.mkdir()
+    from core.volumetric import MOTION, SQUARENESS
+
+    errs = {s: {"identified": [0.0, 1.0], "nodes_mm": [0.0, 100.0]} for s in MOTION}
+    errs.update({s: {"identified": [1.0]} for s in SQUARENESS})
+    errs["EXX"]["identified"] = "abc"
+    (comp / "mfb-3axis-comp.json").write_text(json.dumps({"format": "vmt-comp/1", "errors": errs}))
+    capsys.readouterr()
+    assert main(["scenario", "mfb-3axis", "--apply-comp", str(comp)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert (f"{comp / 'mfb-3axis-comp.json'}: errors.EXX.identified must be a number or a list of numbers, "
+            "got 'abc'") in err, err
+
+
 def test_a_controller_transcript_that_is_not_text_is_named_as_such(tmp_path, capsys):
     """A controller's transcript tolerates stray bytes (decoded with replacement: serial noise in a
     line that is not a probe report), but a whole transcript that is compressed or UTF-16 is refused

@@ -6,13 +6,18 @@ from __future__ import annotations
 
 def register(sub) -> None:
     p = sub.add_parser("bench", help="run the benchmarks, write their figures (with same-run references) as JSON")
-    p.add_argument("--out", default="bench/results.json", help="JSON file to write")
+    from scenarios.cli.options import option
+
+    # --json as in every other command (review32d F9: bench alone wrote its JSON with --out); --out still reads,
+    # with a line naming the new option
+    option(p, "--json", dest="out", metavar="OUT", default="bench/results.json", old=("--out",),
+           help="JSON file to write (bench/results.json)")
     p.add_argument("--only", action="append", default=[], help="run only the benchmarks containing this text (a benchmark's exact name, e.g. bench_discover, selects it alone)")
     p.add_argument("--readme", metavar="FILE", default=None,
                    help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
     p.add_argument("--merge", action="store_true",
-                   help="keep the --out file's figures of the benchmarks not run now (each keeps its own run's "
-                        "date and load); replace those run now. The --out file must exist: with nothing to "
+                   help="keep the --json file's figures of the benchmarks not run now (each keeps its own run's "
+                        "date and load); replace those run now. The --json file must exist: with nothing to "
                         "keep, --merge is refused before any benchmark runs (a table from this run alone would "
                         "drop every other row of --readme)")
     p.add_argument("--from-json", metavar="FILE", default=None,
@@ -38,7 +43,7 @@ def run(args) -> int:
         return 0
     if args.only and args.readme is not None and not args.merge:
         raise ConfigError("--only with --readme: the table would hold only the benchmarks run now; add --merge "
-                          "to keep the others' figures from --out")
+                          "to keep the others' figures from --json")
     old = None
     if args.merge:
         from core.atomic import output_kind
@@ -46,16 +51,16 @@ def run(args) -> int:
         kind = output_kind(args.out)
         if kind not in ("missing", "file"):
             # /dev/stdout, a pipe or a device: reading the figures to keep from it would hang or read nothing
-            raise ConfigError(f"--merge reads the figures to keep from --out, so --out must be a regular file; "
+            raise ConfigError(f"--merge reads the figures to keep from --json, so --json must be a regular file; "
                               f"{args.out} is a {kind}{' (standard output)' if args.out == '/dev/stdout' else ''}")
         if not Path(args.out).exists():
             raise ConfigError(f"--merge: {args.out} does not exist, so there are no figures to keep (a "
                               "fresh clone has none): run `vmt bench` without --merge (all benchmarks), or "
-                              "--out the results file to merge into")
+                              "--json the results file to merge into")
         old = read_results(args.out)
     from scenarios.cli.guard import progress_line
 
-    # the time left from the last run's wall time per benchmark (--out, when it is a readable bench
+    # the time left from the last run's wall time per benchmark (--json, when it is a readable bench
     # document), else from the benchmarks' count
     earlier = old
     if earlier is None:

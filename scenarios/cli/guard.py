@@ -14,7 +14,8 @@
   output it replaced is put back (:class:`core.atomic.RunOutputs`); the
   append-only log of ``vmt probe`` is kept, it is what ``--resume`` continues;
 - a closed pipe (``vmt check log.csv | head -2``) ends quietly, status 141
-  like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130;
+  like any program killed by SIGPIPE; Ctrl-C ends with one line, status 130, and SIGTERM (timeout(1), a CI
+  cancel, systemd) the same way, status 143: the outputs put back as on any failure (session 32);
 - an output named ``/dev/stdout`` is written on standard output itself (never
   replaced) and the command's own messages then go to stderr; an output file
   named ``-`` is the same (:data:`DASH_OWN`: ``check --json -`` prints its JSON
@@ -418,12 +419,17 @@ def _quiet_stdout() -> None:
 
 def run_command(args) -> int:
     """Run ``args.func(args)`` keeping the promises of this module; return the exit status."""
-    from core.atomic import RunOutputs, own_descriptor
-    from core.exceptions import VmtError
-
     name = " ".join([args.command] + [str(v) for k, v in sorted(vars(args).items())
                                       if k.endswith("_command") and isinstance(v, str)])
     ins, outs, dirs = FILES.get(args.command, ((), (), ()))
+    with terminating_as_interrupt():  # SIGTERM as Ctrl-C in every command (review32d F6), not in vmt probe alone
+        return _run_command(args, name, ins, outs, dirs)
+
+
+def _run_command(args, name, ins, outs, dirs) -> int:
+    from core.atomic import RunOutputs, own_descriptor
+    from core.exceptions import VmtError
+
     outputs = None
     try:
         try:

@@ -84,6 +84,7 @@ def _run(args, bar) -> int:
     from scenarios.identify_report import identify_record, identify_report
 
     on = identify_record(log, J_mm, planar & log.ok)   # J: --tool-offset-mm (probe-log/1 has none)
+    file_row = np.flatnonzero(planar)[t.row]           # each touch's data row in the file (0-based, as the reader)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
@@ -109,9 +110,10 @@ def _run(args, bar) -> int:
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it
     G = res.G
-    print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {len(res.design.setup_ids)} C angles;"
+    print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {_setups_said(res, t)};"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
           f" scale {'known' if res.scale_known else 'unknown'}")
+    _dominant(res, t, file_row)
     ht = res.design.heights
     if ht is not None:
         print(f"touches at {len(ht.levels_m)} heights: C-axis tilt per set-up"
@@ -144,6 +146,42 @@ def _run(args, bar) -> int:
 
     print(f"wrote {said(out)}")
     return 0
+
+
+def _setups_said(res, t) -> str:
+    """"4 C angles" when each set-up is at its own C angle (as before), else "4 set-ups at 1 C angle": the
+    distinct C positions of the touches, to 1e-9 deg (review32d F8: 4 set-ups all at C = 0 were said to be
+    "4 C angles")."""
+    import numpy as np
+
+    from core.exceptions import counted
+
+    n = len(res.design.setup_ids)
+    c = np.unique(np.round(np.degrees(np.asarray(t.rot_rad, float)[:, 2]), 9))
+    return counted(n, "C angle") if c.size == n else f"{counted(n, 'set-up')} at {counted(int(c.size), 'C angle')}"
+
+
+def _dominant(res, t, file_row) -> None:
+    """Name the touches that dominate the residual (core.selfcal.dominant_rows; review32d F3: one reading typed
+    10 mm off gave a residual RMS of 364 um and an EXY 'model error' with no row named)."""
+    import numpy as np
+
+    from core.exceptions import counted
+    from core.selfcal import DOMINANT_MOST, DOMINANT_Z, dominant_rows
+
+    dom = dominant_rows(res.residuals_m)
+    if not dom.size:
+        return
+    r = res.residuals_m
+    share = float(np.sum(r[dom] ** 2) / np.sum(r ** 2))
+    rest = np.delete(r, dom)
+    named = ", ".join(f"row {int(file_row[i])} (set-up {t.setup_ids[t.setup[i]]!r}, target "
+                      f"{t.target_ids[t.target[i]]!r}) {r[i] * 1e6:+.1f} um" for i in dom[:DOMINANT_MOST])
+    more = f" and {dom.size - DOMINANT_MOST} more" if dom.size > DOMINANT_MOST else ""
+    print(f"residual dominated by {counted(int(dom.size), 'touch', 'touches')}, {'each ' * (dom.size > 1)}over {DOMINANT_Z:g} times the "
+          f"RMS of the smaller ones: {named}{more}; {100 * share:.1f} % of the residual sum of squares, the other "
+          f"touches' RMS {np.sqrt(np.mean(rest ** 2)) * 1e6:.3f} um. Every figure above rests on them: check those "
+          "readings (a typed value? vmt discover names such outliers)")
 
 
 #: The tables a declared ripple may name, per option (the self-calibration's; the yaw is the machine's).

@@ -97,7 +97,8 @@ def run(args) -> int:
             print(notice)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
-    with progress_line("vcmm: Monte Carlo runs") as bar:
+    # adaptive (JCGM 101 7.9): the total is the runs foreseen now, revised as the batches come in (review32d F10)
+    with progress_line("vcmm: Monte Carlo runs (adaptive: total as foreseen now)") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,
                     sobol_runs=args.sobol_runs)
         bar.clear()

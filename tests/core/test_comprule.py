@@ -145,3 +145,57 @@ def test_comp_tables_apply_the_factor_slope_included():
 def test_comp_tables_refuse_a_bad_factor(bad):
     with pytest.raises(ConfigError, match="EYX.applied_factor must be a number from 0 to 1"):
         comp_tables(_comp_doc(bad))
+
+
+# review32d F1: a malformed vmt-comp/1 table was a traceback (a string in 'identified'), two refusals said the
+# wrong thing ('errors' a list -> "'errors' missing"; an error without 'identified' -> "error EXX missing"), none
+# named the file, and a 1e30 um value was taken (the run failed later naming neither file nor value).
+def _bad(edit):
+    doc = json.loads(json.dumps(_comp_doc()))
+    edit(doc)
+    return doc
+
+
+@pytest.mark.parametrize("edit, says", [
+    (lambda d: d["errors"]["EXX"].__setitem__("identified", "abc"),
+     "errors.EXX.identified must be a number or a list of numbers, got 'abc'"),
+    (lambda d: d["errors"]["EXX"].__setitem__("identified", ["x", "y", "z"]),
+     "errors.EXX.identified must be a number or a list of numbers, got ['x', 'y', 'z']"),
+    (lambda d: d["errors"]["EXX"].__setitem__("nodes_mm", [[0.0], [1.0], [2.0]]),
+     "errors.EXX.nodes_mm must be a number or a list of numbers, got a nested list"),
+    (lambda d: d.__setitem__("errors", [1, 2]), "'errors' must be an object of the 21 errors by symbol, got list"),
+    (lambda d: d.pop("errors"), "'errors' missing"),
+    (lambda d: d["errors"]["EXX"].pop("identified"), "errors.EXX.identified missing"),
+    (lambda d: d["errors"].pop("EXX"), "errors.EXX missing"),
+    (lambda d: d["errors"].__setitem__("EXX", 3.0), "errors.EXX must be an object (identified, nodes_mm, ...), got float"),
+    (lambda d: d["errors"]["EXX"].__setitem__("identified", [0.0, 1e30, 0.0]),
+     "errors.EXX.identified reaches 1e+30 um: beyond the +-1000 um"),
+    (lambda d: d["errors"]["EAX"].__setitem__("identified", [0.0, -1000.5, 0.0]),
+     "errors.EAX.identified reaches -1000.5 urad: beyond the +-1000 urad"),
+    (lambda d: d["errors"]["EC0Y"].__setitem__("identified", [2e3]), "errors.EC0Y.identified reaches 2000 urad"),
+    # 5 urad x 200 mm = 1 um restored at the far node; 5000 urad restores 1000 um, + 4 um identified: beyond
+    (lambda d: d["errors"]["EYX"].__setitem__("end_point_slope_urad", 5000.0),
+     "errors.EYX.end_point_slope_urad reaches 1004 um (the table with its end-point line restored): beyond"),
+    (lambda d: d["errors"]["EYX"].__setitem__("end_point_slope_urad", "five"),
+     "errors.EYX.end_point_slope_urad must be a number or a list of numbers, got 'five'"),
+    (lambda d: d.__setitem__("rotary_points_mm", {"C": [1.0, 2.0]}), "rotary_points_mm.C must be three finite"),
+])
+def test_comp_tables_refuse_a_malformed_table_naming_file_and_key(edit, says):
+    with pytest.raises(ConfigError) as e:
+        comp_tables(_bad(edit), source="d/mfb-3axis-comp.json")
+    assert str(e.value).startswith("d/mfb-3axis-comp.json: " + says), str(e.value)
+
+
+def test_comp_tables_take_the_bound_itself():
+    """The bound is the machine file's (one constant, core.iso): +-1000 um / urad load, as in a machine file."""
+    from core import iso
+    from sim.machinefile import MAX_ANGULAR_URAD, MAX_LINEAR_UM
+
+    assert (MAX_LINEAR_UM, MAX_ANGULAR_URAD) == (iso.MAX_LINEAR_UM, iso.MAX_ANGULAR_URAD)
+
+    def edge(d):
+        d["errors"]["EXX"]["identified"] = [0.0, iso.MAX_LINEAR_UM, -iso.MAX_LINEAR_UM]
+        d["errors"]["EAX"]["identified"] = [0.0, -iso.MAX_ANGULAR_URAD, 0.0]
+        d["errors"]["EC0Y"]["identified"] = [iso.MAX_ANGULAR_URAD]
+    _, t, c, _ = comp_tables(_bad(edge))
+    assert t["EXX"][1][1] == pytest.approx(1e-3) and c["EC0Y"] == pytest.approx(1e-3)

@@ -20,8 +20,6 @@ def full_log(rng, n=12):
         "setup": [f"C{int(k // 4)}" for k in range(n)],
         "target": [f"t{k % 4:02d}" for k in range(n)],
         "t_s": np.cumsum(rng.uniform(0.1, 3.0, n)),
-        "X_mm": rng.normal(0, 100, n), "Y_mm": rng.normal(0, 100, n),
-        "Z_mm": rng.normal(-3, 1, n),
         "Xn_mm": rng.normal(0, 100, n), "Yn_mm": rng.normal(0, 100, n),
         "Zn_mm": np.full(n, -3.0),
         "nx": nx, "ny": ny, "nz": np.zeros(n),
@@ -38,6 +36,10 @@ def full_log(rng, n=12):
         "temp_spindle_C": rng.normal(20, 0.5, n),
         "status": ["ok"] * (n - 1) + ["no_trigger"],
     }
+    # readings near their nominals, as a probe's are (review32d F3: the reader warns of one beyond a stroke)
+    e = rng.normal(0, 0.01, n)
+    cols["X_mm"], cols["Y_mm"] = cols["Xn_mm"] + e * nx, cols["Yn_mm"] + e * ny
+    cols["Z_mm"] = rng.normal(-3, 1e-3, n)
     cols["X_mm"][-1] = np.nan  # a no_trigger touch has no position
     return make_log(cols, meta={"machine": "test, with comma", "artefact": "cross-pocket",
                                 "stylus_r_mm": "3", "custom_key": "kept"})
@@ -638,3 +640,30 @@ def test_a_row_after_quoted_multi_line_cells_is_named_by_its_file_line(tmp_path)
     f.write_text(two + ROW.replace("p1,0,1", "p2,1,y") + ",z\n", encoding="utf-8")
     with pytest.raises(ProbeLogError, match=r"row 1 \(line 6\): column 'X_mm': 'y' is not a number$"):
         read_probe_log(f)
+
+
+# review32d F3: one reading typed 10 mm off along its normal, or 99.9 m off sideways, was read without a word
+# (vmt import refuses such a line: the same bounds, core.probelog.ALIGN_ALONG_MM / ALIGN_LATERAL_MM).
+def test_a_touch_beyond_a_probing_stroke_or_off_its_line_is_warned_of_naming_its_row():
+    from core.probelog import ALIGN_ALONG_MM, ALIGN_LATERAL_MM
+    from hardware.transcript import ALIGN_ALONG_MM as GRBL_ALONG, ALIGN_LATERAL_MM as GRBL_LATERAL
+
+    assert (ALIGN_ALONG_MM, ALIGN_LATERAL_MM) == (GRBL_ALONG, GRBL_LATERAL) == (10.0, 0.5)  # one place
+    rows = ["s1,p1,0,1,0,0,1,0,0,1,0,0",           # on its nominal
+            "s1,p2,1,-9.02,0,0,1,0,0,1,0,0",       # 10.02 mm before it along the normal (d = -n)
+            "s1,p3,2,5,0.51,0,5,0,0,1,0,0",        # 0.51 mm off the line
+            "s1,p4,3,-20,0,0,1,0,0,1,0,0,no_trigger",  # not a touch: never said
+            "s1,p5,4,-8.99,0.5,0,1,0,0,1,0,0"]     # 9.99 along, 0.5 off: within both bounds
+    text = HEADER + ",status\n" + "\n".join(r if r.count(",") == 12 else r + ",ok" for r in rows) + "\n"
+    log = parse_probe_log(text, source="t.csv")
+    assert list(log.warnings) == [
+        "t.csv: row 1 (line 3): set-up 's1', target 'p2': reading (-9.02, 0, 0) mm lies +10.02 mm from its nominal "
+        "along its approach line (dx,dy,dz), beyond the 10 mm a probing stroke's ends may be from it: a typed or "
+        "misplaced reading? Every fit takes it as a touch",
+        "t.csv: row 2 (line 4): set-up 's1', target 'p3': reading (5, 0.51, 0) mm lies 0.51 mm off its approach "
+        "line through its nominal, beyond the 0.5 mm a reading may lie off the line the axes moved on: a typed or "
+        "misplaced reading? Every fit takes it as a touch"], log.warnings
+    # a plan is never said (no readings), and the rows are counted beyond the first
+    many = HEADER + "\n" + "\n".join(f"s1,p{k},{k},-20,0,0,1,0,0,1,0,0" for k in range(3)) + "\n"
+    w = parse_probe_log(many, source="m.csv").warnings
+    assert len(w) == 1 and "(2 more such touches)" in w[0] and "+21 mm from its nominal" in w[0], w

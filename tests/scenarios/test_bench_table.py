@@ -136,7 +136,7 @@ def test_cli_merge_keeps_what_was_not_run(tmp_path, monkeypatch):
     monkeypatch.setattr(B, "BENCHES", ["tests_bench_stub"])
     monkeypatch.setitem(__import__("sys").modules, "tests_bench_stub",
                         type("M", (), {"run": staticmethod(lambda: {"c_s": 1.5})}))
-    assert main(["bench", "--out", str(out), "--merge"]) == 0
+    assert main(["bench", "--json", str(out), "--merge"]) == 0
     f = json.loads(out.read_text())["figures"]
     assert f["b_s"]["value"] == 5.0 and f["c_s"]["value"] == 1.5
     assert set(json.loads(out.read_text())["meta"]["runs"]) == {"bench_two", "bench_tests_bench_stub"}
@@ -208,12 +208,12 @@ def test_vmt_bench_takes_the_time_left_from_its_out_file(monkeypatch, tmp_path):
     monkeypatch.setattr(sb, "run_all", lambda only=None, progress=None, expected=None:
                         seen.append((callable(progress), expected)) or real(only, progress, expected))
     out = tmp_path / "r.json"
-    assert main(["bench", "--out", str(out)]) == 0
+    assert main(["bench", "--json", str(out)]) == 0
     assert seen[-1] == (True, {})
     out.write_text(json.dumps({"format": sb.FORMAT, "meta": {}, "figures": {
         "bench_fakebench_a_wall_s": {"value": 12.5, "bench": "bench_fakebench_a"}}}))
-    assert main(["bench", "--out", str(out)]) == 0          # a last run's file
+    assert main(["bench", "--json", str(out)]) == 0          # a last run's file
     assert seen[-1] == (True, {"bench_fakebench_a": 12.5})
     out.write_text("not json")
-    assert main(["bench", "--out", str(out)]) == 0
+    assert main(["bench", "--json", str(out)]) == 0
     assert seen[-1] == (True, {}) and json.loads(out.read_text())["figures"]["a_s"]["value"] == 1.0

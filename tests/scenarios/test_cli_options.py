@@ -54,6 +54,7 @@ RENAMED = [
     (["discover", "log.csv"], "--grid-step-mm", "30", "--grid-mm"),
     (["import", "grbl", "t.txt"], "--dt", "2", "--dt-s"),
     (["demo"], "--out", "o", "--out-dir"),
+    (["bench"], "--out", "o.json", "--json"),
 ]
 
 #: what each command needs besides the option under test, to parse
@@ -509,7 +510,7 @@ def test_bench_merge_without_a_results_file_refuses_and_keeps_the_readme(tmp_pat
     before = readme.read_bytes()
     ran = []
     monkeypatch.setattr(B, "run_all", lambda *a, **k: ran.append(1))
-    rc = main(["bench", "--out", str(tmp_path / "none.json"), "--merge", "--readme", str(readme)])
+    rc = main(["bench", "--json", str(tmp_path / "none.json"), "--merge", "--readme", str(readme)])
     err = capsys.readouterr().err
     assert rc == 2 and err.count("\n") == 1 and "--merge" in err and "does not exist" in err
     assert readme.read_bytes() == before and not ran and not (tmp_path / "none.json").exists()
@@ -592,7 +593,7 @@ def test_bench_refuses_a_table_from_part_of_the_benchmarks(tmp_path, monkeypatch
     monkeypatch.setattr(B, "run_all", lambda *a, **k: ran.append(1))
     monkeypatch.chdir(tmp_path)
     (tmp_path / "R.md").write_text("x\n<!-- bench-table -->\nrow\n<!-- /bench-table -->\n")
-    assert main(["bench", "--out", str(tmp_path / "o.json"), *argv]) == 2
+    assert main(["bench", "--json", str(tmp_path / "o.json"), *argv]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and says in err, err
     assert not ran and "row" in (tmp_path / "R.md").read_text()
@@ -746,3 +747,30 @@ def test_declared_ripple_options_are_defined_once_for_identify_and_scenario(monk
     src = "".join(p.read_text() for p in pathlib.Path(S.__file__).parent.glob("*.py"))
     assert src.count('add_argument("--declared-ripple-um-mm"') == 1
     assert src.count('add_argument("--declared-ripple-urad-mm"') == 1
+
+
+def test_bench_writes_its_json_with_json_and_out_still_reads(tmp_path, monkeypatch, capsys):
+    """review32d F9: `bench --out` where every other command says `--json`: --json now, --out a renamed alias
+    (one line naming the new option), the same destination."""
+    from scenarios.cli import build_parser
+
+    p = build_parser()
+    assert p.parse_args(["bench", "--json", "a.json"]).out == "a.json"
+    capsys.readouterr()
+    assert p.parse_args(["bench", "--out", "b.json"]).out == "b.json"
+    assert "vmt: --out is renamed to --json" in capsys.readouterr().err
+    assert p.parse_args(["bench"]).out == "bench/results.json"
+
+
+@pytest.mark.parametrize("text, says", [("", "empty file"), ("\n  \n", "empty file"),
+                                        ("# only a comment\n", "empty file (comments only)")])
+def test_an_empty_machine_or_task_file_is_said_to_be_empty(tmp_path, text, says):
+    """review32d F11: an empty machine file said "chain: missing: the ISO 10791 chain", a task "features: missing"."""
+    from core.exceptions import VmtError
+    from core.vcmm import loads_task
+    from sim.machinefile import loads
+
+    for read in (loads, loads_task):
+        with pytest.raises(VmtError) as e:
+            read(text, source="f.toml")
+        assert str(e.value) == f"f.toml: {says}", str(e.value)

@@ -345,10 +345,10 @@ def test_bench_never_replaces_a_link_or_device(files, capfd, monkeypatch):
         "x_s": {"value": 1.0}}})
     link = files["dir"] / "null-link"
     link.symlink_to("/dev/null")
-    assert main(["bench", "--out", str(link)]) == 0, capfd.readouterr().err
+    assert main(["bench", "--json", str(link)]) == 0, capfd.readouterr().err
     assert link.is_symlink() and os.readlink(link) == "/dev/null"
     out = files["dir"] / "r.json"
-    assert main(["bench", "--out", str(out)]) == 0
+    assert main(["bench", "--json", str(out)]) == 0
     assert json.loads(out.read_text())["figures"] == {"x_s": {"value": 1.0}}
     assert out.read_text() == json.dumps(json.loads(out.read_text()), indent=2, sort_keys=True)   # as before
 
@@ -494,7 +494,8 @@ def test_dash_where_it_cannot_be_standard_output_is_refused(files, capsys, monke
 
 
 def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkeypatch):
-    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out,
+    """'vmt bench --merge --out - | cat' hung on main: --merge read the figures to keep from --out (--json
+    since session 32),
     here /dev/stdout, the pipe's writing end. Refused before any benchmark runs: --merge needs a
     regular file to read back."""
     import subprocess
@@ -505,14 +506,14 @@ def test_bench_merge_refuses_an_output_it_cannot_read_back(files, capsys, monkey
 
     monkeypatch.setattr(sb, "run_all", lambda only=None, **kw: pytest.fail("a benchmark ran"))
     for out, kind in (("-", "symbolic link (standard output)"), ("/dev/null", "character device")):
-        assert main(["bench", "--merge", "--out", out]) == 2
-        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --out, so --out must be a "
+        assert main(["bench", "--merge", "--json", out]) == 2
+        one_line(capsys, f"vmt bench: error: --merge reads the figures to keep from --json, so --json must be a "
                          f"regular file; {'/dev/stdout' if out == '-' else out} is a {kind}")
     root = Path(__file__).resolve().parents[2]
-    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --out - | cat", shell=True, cwd=root,
+    p = subprocess.run(f"{sys.executable} -m scenarios.cli bench --merge --json - | cat", shell=True, cwd=root,
                        capture_output=True, text=True, timeout=120,
                        env={**os.environ, "PYTHONPATH": str(root)})
-    assert "--merge reads the figures to keep from --out" in p.stderr, p.stderr
+    assert "--merge reads the figures to keep from --json" in p.stderr, p.stderr
 
 
 def test_a_failed_run_puts_back_the_users_earlier_outputs(files, capsys, monkeypatch):
@@ -560,3 +561,39 @@ def test_pin_circle_report_is_a_report_folder_like_every_other(files, capsys):
     assert main(["scenario", "pin-circle", "--report", str(mine)]) == 2
     one_line(capsys, f"vmt scenario: error: --report {mine}: exists and holds 1 entry but no report of vmt")
     assert sorted(p.name for p in mine.iterdir()) == ["notes.txt"]
+
+
+@pytest.mark.parametrize("workers", [None, "2"])
+def test_sigterm_puts_the_outputs_back_and_says_so_as_ctrl_c_does(tmp_path, workers):
+    """review32d F6: SIGTERM to `vmt design` (timeout(1), a CI cancel, systemd) ended it with status -15, no
+    word, and its pre-existing --json kept aside in a `.vmt-kept.keep.json.*` folder left behind. Every command
+    now takes SIGTERM as Ctrl-C: the output put back, one line, status 143; with --workers the workers stop too."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    plan = tmp_path / "plan.csv"
+    assert main(["simulate", "cross-pocket", "--plan-only", "--out", str(plan)]) == 0
+    keep = tmp_path / "keep.json"
+    keep.write_text("PRE-EXISTING\n")
+    cmd = [sys.executable, "-m", "scenarios.cli", "design", str(plan), "--n-angles", "4", "--json", str(keep)]
+    proc = subprocess.Popen(cmd + (["--workers", workers] if workers else []), cwd=root, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(root)})
+    try:
+        t0 = time.monotonic()
+        while not list(tmp_path.glob(".vmt-kept.keep.json.*")):   # the run has begun: its output is kept aside
+            assert proc.poll() is None and time.monotonic() - t0 < 120, proc.communicate()
+            time.sleep(0.05)
+        time.sleep(0.5)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines()[-1] == "vmt design: terminated (SIGTERM)", err
+    assert "Traceback" not in err
+    assert keep.read_text() == "PRE-EXISTING\n" and not list(tmp_path.glob(".vmt-kept*"))

@@ -304,3 +304,62 @@ def test_identify_names_a_drift_in_time(tmp_path, capsys):
     assert "by up to" not in line and "visible part" in line and "absorb" in line
     td = json.loads(out.read_text())["not_covered"]["time_drift"]
     assert td["clock"] == "t_s" and abs(td["drift_range_um"]["X"] - 3.0) < 1.5 and td["p_value_tables"] < 1e-4
+
+
+def test_a_typed_reading_is_warned_of_and_named_as_dominating_the_residual(tmp_path, rng, capsys):
+    """review32d F3: one reading typed 12 mm off along its normal gave identify a residual of hundreds of um
+    blamed on the error tables, exit 0, no row named. Now the reader warns of it (beyond a probing stroke) and
+    identify names it as dominating the residual (core.selfcal.dominant_rows); the clean campaign says neither."""
+    from core.probelog import read_probe_log
+
+    log_p = tmp_path / "camp.csv"
+    write_campaign(log_p, rng)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log_p), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    cap = capsys.readouterr()
+    assert "dominated" not in cap.out and "warning" not in cap.err, (cap.out, cap.err)
+    log = read_probe_log(log_p)
+    c = log.columns
+    c["X_mm"][5] = c["Xn_mm"][5] + 12.0 * c["nx"][5]   # 12 mm off its nominal along the normal
+    c["Y_mm"][5] = c["Yn_mm"][5] + 12.0 * c["ny"][5]
+    bad = tmp_path / "typo.csv"
+    write_probe_log(bad, log)
+    assert main(["identify", str(bad), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    cap = capsys.readouterr()
+    assert f"{bad}: row 5 (line " in cap.err and "lies -12 mm from its nominal along its approach line" in cap.err
+    said = [ln for ln in cap.out.splitlines() if ln.startswith("residual dominated by")]
+    tgt, setup = c["target"][5], c["setup"][5]
+    assert len(said) == 1 and said[0].startswith(
+        f"residual dominated by 1 touch, over 10 times the RMS of the smaller ones: row 5 (set-up {setup!r}, "
+        f"target {tgt!r}) "), cap.out
+    assert json.loads(out.read_text())["input_warnings"][0].startswith(f"{bad}: row 5 ")
+
+
+def test_dominant_rows_known_answers():
+    from core.selfcal import DOMINANT_Z, dominant_rows
+
+    r = np.random.default_rng(3).normal(0, 1, 10_000)
+    assert dominant_rows(r).size == 0                      # noise alone: max 4 sigma of 1e4 draws
+    r[17], r[4] = 60.0, -40.0
+    assert dominant_rows(r).tolist() == [17, 4]            # largest first, the second not hidden by the first
+    r[4] = 0.9 * DOMINANT_Z * np.sqrt(np.mean(np.delete(r, [17, 4]) ** 2))
+    assert dominant_rows(r).tolist() == [17]               # under 10 times the others' RMS: not named
+    assert dominant_rows(np.zeros(5)).size == 0 and dominant_rows([1.0, 100.0]).size == 0
+
+
+def test_set_ups_at_one_c_angle_are_not_said_to_be_four_angles(tmp_path, rng, capsys):
+    """review32d F8: a log whose four set-ups all read C = 0 was said to hold "4 C angles" (the set-ups
+    counted); the distinct C positions are counted now, the usual wording kept when each set-up has its own."""
+    from core.probelog import read_probe_log
+
+    log_p = tmp_path / "camp.csv"
+    write_campaign(log_p, rng)
+    out = tmp_path / "id.json"
+    assert main(["identify", str(log_p), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    assert "368 touches, 92 targets, 4 C angles;" in capsys.readouterr().out
+    log = read_probe_log(log_p)
+    log.columns["C_deg"][:] = 0.0
+    same = tmp_path / "samec.csv"
+    write_probe_log(same, log)
+    assert main(["identify", str(same), "--json", str(out), "--grid-mm=-110:110:22"]) == 0
+    assert "368 touches, 92 targets, 4 set-ups at 1 C angle;" in capsys.readouterr().out

@@ -108,3 +108,30 @@ def test_cli_bad_sobol_runs_exit_2(tmp_path, capsys, n):
                  "--sobol-runs", n]) == 2
     err = capsys.readouterr().err
     assert "--sobol-runs must be 0 or >= 2" in err and err.count("\n") == 1 and not out.exists()
+
+
+# review32d F4: a task's declared limit of 1e12 um/m was refused only at touch 0 ("early_trigger ... beyond
+# +-1 mm of its target?"), naming neither file nor key. Now the machine file's one check
+# (sim.machinefile.bound_problem) bounds each term at its bound over its axis's stroke, then a symbol's terms
+# summed; vmc-3axis X stroke -300..300 mm, so a slope loads up to 1000 um / 0.3 m = 3333.3 um/m.
+@pytest.mark.parametrize("body, says", [
+    ("slope_um_per_m = 1e12", "t.toml: declared.EXX.slope_um_per_m: at its bound reaches -3e+11 um (at X -300 mm): "
+                              "beyond the +-1000 um a declared translation error may have"),
+    ("constant_um = 1000.5", "t.toml: declared.EXX.constant_um: at its bound reaches 1000.5 um"),
+    ("quadratic_um_per_m2 = 11200", "t.toml: declared.EXX.quadratic_um_per_m2: at its bound reaches 1008 um"),
+    ("periodic_um = 2000\nperiod_mm = 25", "t.toml: declared.EXX.periodic_um: at its bound reaches"),
+    ("constant_um = 600\nperiodic_um = 300\nperiod_mm = 25\nslope_um_per_m = 400",
+     "t.toml: declared.EXX: its terms at their bounds, summed, reaches 1020 um (at X 300 mm)"),
+])
+def test_declared_limits_beyond_the_machine_files_bounds_are_refused_naming_file_and_key(machine, body, says):
+    from core.exceptions import ConfigError
+
+    task = V.loads_task(GAUGE_TASK.replace("slope_um_per_m = 10.0", body, 1), source="t.toml")
+    with pytest.raises(ConfigError) as e:
+        S.prepare(GAUGE, task, machine)
+    assert str(e.value).startswith(says), str(e.value)
+
+
+def test_declared_limits_at_the_bounds_load(machine):
+    body = "slope_um_per_m = 3333.3333\n[declared.EYY]\nconstant_um = 500\nperiodic_um = 500\nperiod_mm = 25"
+    S.prepare(GAUGE, V.loads_task(GAUGE_TASK.replace("slope_um_per_m = 10.0", body, 1), source="t.toml"), machine)
