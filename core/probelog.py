@@ -909,6 +909,8 @@ def rounding_sd(q):
     (``core.causes.clock_sensors``: a temperature's scatter; ``core.features``: ``vmt fit``'s U95). Works on
     floats and arrays alike."""
     return q / np.sqrt(12.0)
+
+
 def far_from_nominal(log: ProbeLog, ok: np.ndarray, lines: np.ndarray | None, warnings: list) -> None:
     """Warn of valid touches farther from their nominal than a probe triggers (:data:`ALIGN_ALONG_MM` along the
     approach line, :data:`ALIGN_LATERAL_MM` off it), naming the first row of each kind and counting the rest
