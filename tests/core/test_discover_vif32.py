@@ -31,8 +31,10 @@ def _report_8907():
     return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
 
 
-def test_hedged_shift_carried_value_is_known():
-    assert D.HEDGED_SHIFT_CARRIED in (None, "inflated", "hedged")
+def test_rules_as_shipped():
+    """HEDGED_SHIFT_CARRIED on (``inflated``, session 32); VIF_WORST_REFUSED and VIF_DROP_BEYOND_MAX off."""
+    assert D.HEDGED_SHIFT_CARRIED == "inflated"
+    assert D.VIF_WORST_REFUSED is False and D.VIF_DROP_BEYOND_MAX is False
 
 
 @pytest.mark.slow
@@ -79,7 +81,9 @@ def test_8907_shift_is_the_term_left_out_known_answer(monkeypatch):
 @pytest.mark.slow
 def test_8907_every_direction_judged_refuses_the_part_change(monkeypatch):
     """VIF_WORST_REFUSED (off): the part_change's worst direction (181 > 100) refuses it; the extended workpiece is
-    then within (0.694 against 1.053 + 1.289); without it the part_change is adopted (the session 31 miss)."""
+    then within (0.694 against 1.053 + 1.289); without it the part_change is adopted (the session 31 miss; the
+    hedged shift, on since session 32, switched off to see the refusal alone)."""
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
     monkeypatch.setattr(D, "VIF_WORST_REFUSED", True)
     o = _a8907()
     assert o.findings == ("unexplained",) and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
