@@ -5466,7 +5466,10 @@ def _pen_key(terms) -> tuple:
 #: lobing_per_setup (a norm over every set-up's lobes loses its value with one direction: 6 of gen_a's 20 named ->
 #: hedged) and throws away the drift a right form carries along such directions (gen_a thermal_drift 1000-1019:
 #: mean extended error 0.250 -> 0.538 um); :data:`VIF_DROP_LEAST_INFLATION` (off too) was measured beside it.
-#: docs/discovery-studies.md, "Session 28: directions inflated beyond vif_max".
+#: docs/discovery-studies.md, "Session 28: directions inflated beyond vif_max". Re-measured in session 32 (vif32,
+#: 685 tuning campaigns): the same costs to the digit (gen_a lobing_per_setup 1003 confident -> hedged, thermal_drift
+#: 1004 0.372 -> 1.341 um), 0 right -> wrong, no check gained; it mends gen_a thermal_bending 8907 (1.485 against
+#: 1.053 + 1.951), which :data:`HEDGED_SHIFT_CARRIED` holds instead. Still off.
 VIF_DROP_BEYOND_MAX = False
 
 
@@ -5475,8 +5478,10 @@ VIF_DROP_BEYOND_MAX = False
 #: (:func:`_judge_trial`; the smallest principal angle's limit, ``1 / sin^2`` of it). The harsher sibling of
 #: :data:`VIF_DROP_BEYOND_MAX` (which keeps the cause on its other directions). Session 32 (vif32): it mends gen_a
 #: thermal_bending 8907 (a hedged part_change, best direction 4.7, worst 181, 6.9 um carried into the extended
-#: workpiece) but refuses right forms inflated along a direction the data do not need (measured, off:
-#: docs/discovery.md, "Session 32: a workpiece moved along an inflated direction").
+#: workpiece: 0.694 against 1.053 + 1.289 with it) but refuses right forms, which are inflated beyond ``vif_max``
+#: along some direction as a rule: 24 right -> wrong on gen_a/gen_b 1000-1004's 175 effect campaigns (thermal_drift,
+#: probe_lobing, reversal, c_drift, lobing_per_setup, stylus_bending, part_change -> ``unexplained``), none wrong ->
+#: right, no check gained. Off. docs/discovery.md, "Session 32: a workpiece moved along an inflated direction".
 VIF_WORST_REFUSED = False
 
 
