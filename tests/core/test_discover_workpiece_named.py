@@ -39,6 +39,10 @@ def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(m
     monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", False)
     o = _fl1009()
     assert o.cause == "part_change" and not o.confident
+    # session 32: the hedged part_change's own shift (HEDGED_SHIFT_CARRIED, on) covers it: 13.61 <= 4.96 + 14.30
+    assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
+    o = _fl1009()
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 21's engine: 13.61 > 4.96 + 7.28
 
 
