@@ -2010,8 +2010,8 @@ SERIAL_CORRELATION = True
 SERIAL_P = 1e-3
 #: Take the serial test beside the model-error budget's entered fine tables too (a table misfit is smooth along
 #: its axis, so correlated in touch order along a wall). Off: those tables are chosen by the data and take most of
-#: an AR(1) wander with them (review32b's rho 0.8: the test then fires on 57 of 60 runs but reads rho ~0.5 and
-#: coverage stays at 89.9 %, against 93.3 % off). The test is always beside the declared ripples and the named
+#: an AR(1) wander with them (review32b's rho 0.8, 60 runs: the test then fires on 36 and coverage stays at
+#: 89.9 %, against 60 and 93.5 % off). The test is always beside the declared ripples and the named
 #: approach-direction and time structures.
 SERIAL_BESIDE_TABLES = False
 #: The serial test works on dense (touches x free parameters) arrays: above this many cells it is not run (the
