@@ -2014,9 +2014,12 @@ SERIAL_P = 1e-3
 #: 89.9 %, against 60 and 93.5 % off). The test is always beside the declared ripples and the named
 #: approach-direction and time structures.
 SERIAL_BESIDE_TABLES = False
-#: The serial test works on dense (touches x free parameters) arrays: above this many cells it is not run (the
-#: report then has no ``correlated_errors`` entry and the U95 takes the errors as independent, as before).
+#: The serial test works on dense (touches x free parameters) arrays and its rho costs ~15 products of
+#: touches x free^2: above this many cells, or this much work, it is not run (the report then has no
+#: ``correlated_errors`` entry and the U95 takes the errors as independent, as before). The review's pocket:
+#: 368 x 160 cells, 1e7 work.
 SERIAL_MAX_CELLS = 2.0e7
+SERIAL_MAX_WORK = 2.0e9
 
 
 @dataclass(frozen=True)
@@ -2117,7 +2120,7 @@ def serial_correlation(design: SelfCalDesign, est: LinearEstimator, touches: Tou
         raise ConfigError(f"serial_correlation: {r.size} residuals, {touches.n} touches, design of "
                           f"{design.A.shape[0]} rows")
     n = r.size
-    if n * est.n_free > SERIAL_MAX_CELLS:
+    if n * est.n_free > SERIAL_MAX_CELLS or n * float(est.n_free) ** 2 > SERIAL_MAX_WORK:
         return None
     order, segs, clock = _touch_sequence(touches)
     i = np.concatenate([order[a:b - 1] for a, b in segs if b - a > 1] or [np.zeros(0, int)])
