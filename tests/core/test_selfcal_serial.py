@@ -12,7 +12,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 import core.selfcal as cs
 from core.design import example_cross_pocket
@@ -84,7 +83,6 @@ def test_the_moments_equal_their_dense_evaluation():
     # the AR(1) correlation applied by filters equals the dense rho^|i - j| within a set-up
     rho = 0.7
     S = np.zeros((n, n))
-    pos = np.empty(n, int)
     for a, b in segs:
         idx = order[a:b]
         k = np.arange(b - a)
