@@ -1248,6 +1248,9 @@ class Iso2302Result:
         ``mean_up_um``, ``mean_down_um``, ``mean_um``, ``B_um``,
         ``s_up_um``, ``s_down_um``, ``R_up_um``, ``R_down_um``, ``R_um`` and
         the band edges ``x̄ ± 2s`` as ``lower_up_um`` ... ``upper_down_um``);
+        ``cycles``: the largest number of valid readings at one target in one direction (the cycle count
+        when every target has them all; ``readings_per_target_min``/``_max`` beside it: a retaken or
+        invalid reading makes them differ, review32b F1.2);
         ``target_count_rule``: ``checked`` (false for a rotary axis and a linear
         one over 2 m, whose rule vmt does not hold), ``asked`` (the targets
         ISO 230-2 asks, None unchecked) and ``rule`` (:func:`targets_asked`).
@@ -1255,7 +1258,9 @@ class Iso2302Result:
         ru, k = REPORT_UNIT[self.unit]
         out: dict = {"format": REPORT_FORMAT, "standard": "ISO 230-2:2014", "axis": self.axis, "unit": ru,
                      "cycle_kind": self.cycle_kind, "targets": int(self.targets.size),
-                     "cycles": int(max(self.n_up.max(), self.n_down.max()))}
+                     "cycles": int(max(self.n_up.max(), self.n_down.max())),
+                     "readings_per_target_min": int(min(self.n_up.min(), self.n_down.min())),
+                     "readings_per_target_max": int(max(self.n_up.max(), self.n_down.max()))}
         for f in self.FIGURES:
             out[f"{f}_{ru}"] = float(getattr(self, f)) * k
         rows = []
@@ -1521,13 +1526,63 @@ class UncertaintyBudget:
     U: dict[str, float]
     k: float = 2.0
     temperature: dict | None = None
+    U_sampling: dict | None = None
 
     def to_report(self) -> dict:
         return {"k": self.k, "travel_mm": self.travel_mm,
+                "U_what": ("U_<figure>_um: the measuring conditions' part only (instrument, alignment, temperature, "
+                           "environment); U_sampling_<figure>_um: the test's own sampling scatter (the figure's "
+                           "spread over repeats of the same test, :func:`sampling_uncertainty`), stated apart: "
+                           "ISO 230-2's figures are statistics of the readings taken, and a repeat of the test "
+                           "moves them by this much"),
                 "contributions": [{"source": s, "u_range_um": a, "u_difference_um": b}
                                   for s, (a, b) in self.contributions.items()],
                 **{f"U_{f}_um": v for f, v in self.U.items()},
+                **({f"U_sampling_{f}_um": v for f, v in self.U_sampling.items()} if self.U_sampling else {}),
                 **({"temperature": dict(self.temperature)} if self.temperature is not None else {})}
+
+
+#: Repeats of the test :func:`sampling_uncertainty` draws (a 2 x std read to ~1.6 % at 4000: sd of a std
+#: from N draws is ~1/sqrt(2N)); its generator's seed is fixed, so a report is reproducible.
+SAMPLING_RUNS = 4000
+
+
+def sampling_uncertainty(result: "Iso2302Result", runs: int = SAMPLING_RUNS, seed: int = 0) -> dict:
+    """Per figure, 2 x the standard deviation of that figure over repeats of the same test, µm (arcsec for
+    a rotary axis): the test's own sampling scatter, which the conditions' budget (:func:`figure_uncertainty`)
+    leaves out (review32b F1.1: the sample log's R 5.402 um moves with 2 x std 1.00 um between repeats, its
+    conditions' U 0.231).
+
+    A Monte Carlo (JCGM 101) of the test with the log's per-target means and s as the truth and its own number
+    of readings n per target and direction: each repeat draws the means from ``N(x̄, s / sqrt n)`` and the
+    s from ``s sqrt(chi2_{n-1} / (n - 1))`` (independent, normal readings: their exact sampling laws) and
+    evaluates every figure by :func:`figures`. Where n < 2 the s is kept. A plug-in estimate: the truth is the
+    data's own, so it is itself uncertain (a 5-reading s by ~35 %). The conditions' budget holds the
+    contributions ISO 230-2 names, combined as ISO/TR 230-9 does; the sampling scatter is not among them, so
+    this is stated beside that U, not added to it.
+    """
+    if not (isinstance(runs, int) and runs >= 10):
+        raise PositioningLogError(f"sampling_uncertainty: runs must be an integer >= 10, got {runs!r}")
+    rng = np.random.default_rng(seed)
+    ru, kf = REPORT_UNIT[result.unit]
+    m = result.targets.size
+
+    def draw(mean, s, n):
+        n = np.asarray(n, float)
+        ok = n >= 2
+        nn = np.where(ok, n, 2.0)
+        mu = mean + s / np.sqrt(np.maximum(n, 1.0)) * rng.standard_normal((runs, m))
+        sd = np.where(ok, s * np.sqrt(rng.chisquare(nn - 1.0, (runs, m)) / (nn - 1.0)), s)
+        return mu, sd
+
+    xu, su = draw(result.mean_up, result.s_up, result.n_up)
+    xd, sd = draw(result.mean_down, result.s_down, result.n_down)
+    vals = {f: np.empty(runs) for f in Iso2302Result.FIGURES}
+    for i in range(runs):
+        r = figures(result.targets, xu[i], xd[i], su[i], sd[i], unit=result.unit)
+        for f in Iso2302Result.FIGURES:
+            vals[f][i] = getattr(r, f)
+    return {f: 2.0 * float(np.std(v, ddof=1)) * kf for f, v in vals.items()}
 
 
 def temperature_statement(travel_mm: float, inputs: UncertaintyInputs) -> dict:
@@ -1576,9 +1631,10 @@ def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> Unce
     environment during the test does not cancel. The cosine error lies
     between 0 and ``L φ²/2`` (one-sided, rectangular: u = width / sqrt 12);
     a range read as E_VE is rectangular of half-width E_VE / 2. Not
-    included: the sampling uncertainty of s itself (R and A rest on n
-    readings), set-up errors (Abbe offsets of the instrument to the
-    tool), which belong to the machine's own budget.
+    in ``U``: the test's own sampling scatter (the means and s rest on n
+    readings: R and A move most), stated beside it as ``U_sampling``
+    (:func:`sampling_uncertainty`); set-up errors (Abbe offsets of the
+    instrument to the tool), which belong to the machine's own budget.
     """
     if result.unit != "mm":
         raise PositioningLogError("the test-uncertainty budget is for linear axes (unit mm)")
@@ -1599,5 +1655,6 @@ def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> Unce
     U = {f: k * u_range for f in ("E_up", "E_down", "E", "M", "A_up", "A_down", "A")}
     U.update({f: k * u_diff for f in ("B", "B_mean", "R_up", "R_down", "R")})
     return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k,
-                             temperature=temperature_statement(L_mm, inputs))
+                             temperature=temperature_statement(L_mm, inputs),
+                             U_sampling=sampling_uncertainty(result))
 

@@ -137,6 +137,12 @@ def _run(args, bar) -> int:
     ad = report.get("not_covered", {}).get("approach_direction")
     if ad:      # residuals that follow the approach direction: a probe lobing the U95 does not cover
         print("not covered by U95: " + ad["what"])
+    ce = report.get("not_covered", {}).get("correlated_errors")
+    if ce and ce["significant"]:   # probing errors correlated in touch order: the U95 widened for them
+        print("correlated probing errors: " + ce["what"])
+    ul = report.get("not_covered", {}).get("undetected_lobes")
+    if ul and not ad:
+        print("not covered by U95: " + ul["what"])
     td = report.get("not_covered", {}).get("time_drift")
     if td:      # residuals that follow time: a drift inside the campaign (core.selfcal.TIME_STRUCTURE)
         print("not covered by U95: " + td["what"])

@@ -79,8 +79,12 @@ def run(args) -> int:
     if rep.get("cycle_note"):
         print(f"  note: {rep['cycle_note']}")
     U = rep.get("uncertainty") or {}
+    if U:
+        print("  (U cond: the measuring conditions' expanded uncertainty, k = 2; sampling: 2 x std of the figure "
+              "over repeats of this test, from its own readings)")
     for name, symbol, clause, meaning in FIGURE_ROWS:
-        extra = f"  (U {U[f'U_{name}_um']:.3f})" if U else ""
+        extra = (f"  (U cond {U[f'U_{name}_um']:.3f}, sampling {U[f'U_sampling_{name}_um']:.2f})"
+                 if U and f"U_sampling_{name}_um" in U else f"  (U cond {U[f'U_{name}_um']:.3f})" if U else "")
         pad = " " * (4 - len(symbol.replace("\u0304", "")))  # B̄ carries a combining macron
         print(f"  {symbol}{pad}{rep[f'{name}_{u}']:10.3f} {sym}{extra}   {meaning} [{clause}]")
     from pathlib import Path

@@ -54,6 +54,17 @@ def _fmt(v, unit):
     return f"{v:.6f} {unit}" if unit in ("mm", "deg") else f"{v:.4f} {unit}"
 
 
+def _u_decimals(tol) -> int:
+    """Decimals to print u and U to: the place the run's numerical tolerance makes reliable (JCGM 101 7.9.2:
+    delta = 1/2 10^l, u stable to the digit of 10^l; review32b F1.2: 4 decimals where significant_digits = 1
+    made one reliable); 4 when no tolerance is given. The JSON keeps every digit."""
+    import math
+
+    if tol is None or not (tol > 0) or not math.isfinite(tol):
+        return 4
+    return max(0, min(6, -math.floor(math.log10(2 * tol) + 1e-9)))
+
+
 def run(args) -> int:
     import dataclasses
 
@@ -109,11 +120,12 @@ def run(args) -> int:
           f"({rep['runs_total']} with the budget, {rep['runs_per_s']:.1f} runs/s), seed {args.seed}")
     for m in rep["measurands"]:
         tail = "" if m["converged"] else "  NOT CONVERGED (max_runs reached)"
+        d = _u_decimals(m.get("tolerance"))
         print(f"  {m['name']}: nominal {_fmt(m['nominal'], m['unit'])}, bias {m['bias']:+.4f} {m['u_unit']}, "
-              f"u {m['u']:.4f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.4f} {m['u_unit']}, "
+              f"u {m['u']:.{d}f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.{d}f} {m['u_unit']}, "
               f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
         for b in sorted(m["budget"], key=lambda b: -b["u"]):
-            print(f"      {b['source']:24s} u {b['u']:.4f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
+            print(f"      {b['source']:24s} u {b['u']:.{d}f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
         if m["sobol_first_order"]:
             se = m["sobol_first_order_se"]
             print("      first-order Sobol (+- standard error): " + ", ".join(

@@ -942,3 +942,30 @@ def test_temp_c_corrects_nothing_and_says_the_expansion_it_leaves(tmp_path):
     rep20, w20 = evaluate_file(sample, tmp_path / "c.json", uncertainty=UncertaintyInputs(temperature_C=20.0))
     assert rep20["uncertainty"]["temperature"]["expansion_if_uncorrected_um"] == 0.0
     assert not any(w.startswith("--temp-c") for w in w20)
+
+
+def test_sampling_uncertainty_known_answers_and_the_sample():
+    """review32b F1.1: the test's own sampling scatter beside the conditions' U. Known answers on one target
+    (n = 5 each way): B_mean = x̄↑ - x̄↓ has std sqrt(s↑² + s↓²) / sqrt 5; R↑ = 4 s↑ has std 4 s↑ sqrt(1 - c4²),
+    c4 = sqrt(2 / (n - 1)) Γ(n / 2) / Γ((n - 1) / 2) (the chi law of s). 4000 repeats read a std to ~1.1 %:
+    5 % tolerance. The sample log: R 1.00 um, B 0.36 um, A 1.07 um as review32b's own 20,000-repeat Monte Carlo
+    (iso_Rspread.py) gave, to 5 %. Bad input: fewer than 10 runs."""
+    from math import gamma, sqrt
+    from pathlib import Path
+
+    from core.positioning import PositioningLogError, figures, sampling_uncertainty
+
+    r = figures([0.0], [0.002], [-0.001], [0.0010], [0.0005], n_up=[5], n_down=[5])
+    u = sampling_uncertainty(r)
+    assert u["B_mean"] == pytest.approx(2 * sqrt(1.0 ** 2 + 0.5 ** 2) / sqrt(5), rel=0.05)
+    c4 = sqrt(2 / 4) * gamma(2.5) / gamma(2.0)
+    assert u["R_up"] == pytest.approx(2 * 4 * 1.0 * sqrt(1 - c4 ** 2), rel=0.05)
+    from core.positioning import iso230_2, read_positioning_log
+
+    res = iso230_2(read_positioning_log(Path(__file__).resolve().parents[2] / "scenarios" / "data"
+                                        / "positioning-sample.csv"))
+    s = sampling_uncertainty(res)
+    assert s["R"] == pytest.approx(1.00, rel=0.05) and s["B"] == pytest.approx(0.36, rel=0.05)
+    assert s["A"] == pytest.approx(1.07, rel=0.05)
+    with pytest.raises(PositioningLogError, match="runs"):
+        sampling_uncertainty(res, runs=5)

@@ -183,7 +183,10 @@ def test_identify_names_the_lobes_its_u95_does_not_cover(tmp_path, capsys):
     assert main(["simulate", "cross-pocket", "--machine", str(toml), "--out", str(log), "--seed", "1001"]) == 0
     assert main(["identify", str(log), "--json", str(out)]) == 0
     r0 = json.loads(out.read_text())
-    assert r0["not_covered"] == r["not_covered"]
+    # (the serial test and the lobes' detection limits read the data's residuals and sigma: not of the design)
+    data = ("correlated_errors", "undetected_lobes")
+    assert ({k: v for k, v in r0["not_covered"].items() if k not in data}
+            == {k: v for k, v in r["not_covered"].items() if k not in data})
 
 
 def test_identify_declared_ripple(tmp_path, capsys):

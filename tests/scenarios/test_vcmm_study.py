@@ -299,3 +299,13 @@ def test_a_declared_polynomial_is_of_the_axis_position_reading_plus_J(machine):
     s = 1e-5
     p2 = S.simulate_run(st, {("EZZ", 1): s}, None, noise=False)
     np.testing.assert_allclose(p2[:, 2] - p0[:, 2], -s * (p2[:, 2] + J_z), rtol=0, atol=1e-12)
+
+
+def test_u_is_printed_to_the_place_its_tolerance_makes_reliable():
+    """review32b F1.2: the terminal printed u to 4 decimals where significant_digits = 1 made one reliable.
+    JCGM 101 7.9.2: delta = 1/2 10^l, u stable to the digit of 10^l: delta 0.05 um -> 1 decimal, 0.005 -> 2,
+    0.5 -> 0; a user's --tol-um 0.1 (not of that form) -> 1 (the place of 2 delta, rounded down); none -> 4."""
+    from scenarios.cli.vcmm import _u_decimals
+
+    assert [_u_decimals(d) for d in (0.05, 0.005, 0.5, 0.1, 0.09999999999999999, None, 0.0, float("nan"))] == \
+        [1, 2, 0, 1, 1, 4, 4, 4]
