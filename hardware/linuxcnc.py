@@ -14,7 +14,9 @@ fall one plan row early; a ``LOG`` line is written for every probe (the
 interpreter expands it after the probe, src/emc/rs274ngc/interp_convert.cc).
 The moves are the live campaign's (:func:`hardware.campaign.approach`): the
 first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
-turn only there, in a line of their own, X, Y, Z unchanged.
+turn only there, in a line of their own, X, Y, Z unchanged. Only the
+controller's axes get words (:func:`program_axes`: ``axes``, else the
+plan's machine): LinuxCNC refuses a letter its machine lacks.
 
 LinuxCNC writes the probed point in the coordinate system in effect
 (offsets and XY rotation removed). The program therefore saves the modal
@@ -77,17 +79,71 @@ _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
 
 
-def _words(p_mm, rot_deg=None, axes: str = "XYZ") -> str:
+def _words(p_mm, rot_deg=None, axes: str = "XYZ", rotary: str = "ABC") -> str:
     # 6 decimals (1 nm), as LinuxCNC writes its probe file: 4 would bend each probing line by up
     # to 0.05 um per axis, a lateral error of the touch on any surface not square to an axis
     w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm) if a in axes)
-    if rot_deg is not None:
-        w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
+    if rot_deg is not None:     # only the controller's rotary axes: LinuxCNC refuses a letter it lacks
+        w += "".join(f" {a}{v:.4f}" for a, v in zip("ABC", rot_deg) if a in rotary)
     return w
 
 
+def check_axes(axes: str) -> str:
+    """``axes`` as LinuxCNC's ``[TRAJ] COORDINATES`` names them for vmt: X, Y, Z then rotary axes among A, B, C
+    (``"XYZAC"``), upper case; the same rule and message as ``vmt probe --axes`` (:func:`hardware.grbl.check_axes`).
+
+    Raises
+    ------
+    PlanError
+        Anything else.
+    """
+    a = str(axes).upper()
+    if a[:3] != "XYZ" or len(set(a)) != len(a) or any(x not in "ABC" for x in a[3:]):
+        raise PlanError(f"--axes {axes!r}: expected X, Y, Z then rotary axes A, B, C (e.g. XYZAC)")
+    return a
+
+
+def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
+    """(the controller's axes, where they came from) for :func:`part_program` of ``plan``.
+
+    LinuxCNC's interpreter refuses an axis letter its machine lacks ("Bad character 'b' used",
+    rs274ngc_pre.cc: the word readers of axes outside the axis mask are dropped), so the program
+    writes a word for every rotary axis the controller has and no other. Its axes are, first
+    found: ``axes`` (``--axes``, or the CLI's ``--machine``); the plan's ``kinematic_chain``
+    (every simulated plan has it: the nmv3000's gives ``XYZAC``); the built-in machine its
+    ``machine`` names; ``XYZ`` for a plan without A, B, C columns.
+
+    Raises
+    ------
+    PlanError
+        Bad ``axes``; a plan with rotary columns whose machine is not known (name it: ``--axes``).
+    """
+    if axes is not None:
+        return check_axes(axes), "--axes"
+    chain = plan.meta.get("kinematic_chain")
+    if chain:
+        from core.chain import parse_chain
+
+        try:
+            return "XYZ" + "".join(parse_chain(chain).rotary_axes), "the plan's kinematic_chain"
+        except Exception:   # a chain vmt cannot parse names no axes: fall through to the machine's name
+            pass
+    name = plan.meta.get("machine")
+    if name:
+        from sim.machinefile import builtin_names, truth_machine
+
+        if name in builtin_names():
+            rot = truth_machine(name, "none").config.parsed_chain.rotary_axes
+            return "XYZ" + "".join(rot), f"the plan's machine {name}"
+    if any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg")):
+        raise PlanError("the plan has rotary columns (A_deg, B_deg, C_deg) but names no machine: name the "
+                        "controller's axes with --axes (e.g. XYZAC) or give --machine (LinuxCNC refuses a word "
+                        "for an axis it lacks)")
+    return "XYZ", "the plan (no rotary columns)"
+
+
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
-                 wcs: str = "G59.3", require_limits: bool = True) -> str:
+                 wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None) -> str:
     """The LinuxCNC part program probing ``plan`` (safety-checked like a live campaign).
 
     Parameters
@@ -102,21 +158,36 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         File named in ``(LOGOPEN,...)``, as LinuxCNC will resolve it.
     wcs : str
         Work coordinate system zeroed and used (``G54`` ... ``G59.3``).
+    axes : str, optional
+        The controller's axes (``[TRAJ] COORDINATES``: ``"XYZAC"``); default
+        from the plan (:func:`program_axes`). The program writes a word for
+        every rotary axis among them (from the plan's A, B, C; 0 for a
+        column it lacks) and no other: LinuxCNC stops at a letter its
+        machine lacks.
 
     Raises
     ------
     PlanError
-        Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take.
+        Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take;
+        bad or unknown ``axes`` (:func:`program_axes`); a row that turns an axis
+        the controller lacks (named with its angle).
     """
     if wcs not in _WCS_P:
         raise PlanError(f"--wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
     if any(c in probe_file for c in "()\n"):
         raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
+    ctrl, _ = program_axes(plan, axes)
     steps = plan_steps(plan, settings)
-    rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    have = ctrl[3:]
+    for st in steps:        # a turn of an axis the controller lacks cannot be written: refused by row
+        for a, v in zip("ABC", st.rot_deg):
+            if a not in have and abs(v) > 1e-9:
+                raise PlanError(f"row {st.row} (target {st.target!r}) turns {a} to {v:g} deg but the controller's "
+                                f"axes are {ctrl}: no {a} axis to turn (--axes names them)")
+    rotary = bool(have) and any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
     check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
-    axes = "XYZABC" if rotary else "XYZ"
+    axes = ctrl if rotary else "XYZ"
     wcs_p = _WCS_P[wcs]
     base = 5201 + 20 * wcs_p                  # parameters of the frame: X Y Z A B C U V W R
     saved = {a: f"#<_vmt_wcs_{a.lower()}>" for a in axes + "R"}
@@ -146,7 +217,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         label = f"row {st.row} setup {st.setup} target {st.target}"
         out.append("(" + label.replace("(", "[").replace(")", "]") + ")")
         for m in moves:
-            out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes)} F{fm:.1f}")
+            out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes, have)} F{fm:.1f}")
         out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
         # the touch, numbered by its plan row, and the probing move it ended (start to end, as GRBL's G91 G38.2
         # carries it): the import's along-the-line bound is that stroke
