@@ -143,7 +143,8 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
 
 
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
-                 wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None) -> str:
+                 wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None,
+                 from_row: int = 0) -> str:
     """The LinuxCNC part program probing ``plan`` (safety-checked like a live campaign).
 
     Parameters
@@ -164,6 +165,16 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         every rotary axis among them (from the plan's A, B, C; 0 for a
         column it lacks) and no other: LinuxCNC stops at a letter its
         machine lacks.
+    from_row : int
+        First plan row to probe. 0: the whole plan, the probe file opened
+        with ``LOGOPEN``, which truncates it (src/emc/task/emccanon.cc:
+        ``fopen(name, "wt")``): the program's header says to copy or import
+        it before a re-run. ``K > 0``: the run that stopped at row ``K``
+        continued, rows ``K`` on, the file opened with ``LOGAPPEND``
+        (``fopen(name, "at")``): its lines ``N0..N<K-1>`` stay and the new
+        ones follow, one file that :func:`import_probe_file` reads as one
+        run (rows 0, 1, 2, ... checked; a wrong ``K`` leaves a gap or a
+        repeat, refused naming the line).
 
     Raises
     ------
@@ -176,6 +187,9 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         raise PlanError(f"--wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
     if any(c in probe_file for c in "()\n"):
         raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
+    if isinstance(from_row, bool) or not isinstance(from_row, (int, np.integer)) or not 0 <= from_row < plan.n:
+        raise PlanError(f"--from-row {from_row!r}: expected a plan row, 0..{plan.n - 1} (the plan has "
+                        f"{counted(plan.n, 'row')})")
     ctrl, _ = program_axes(plan, axes)
     steps = plan_steps(plan, settings)
     have = ctrl[3:]
@@ -185,6 +199,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
                 raise PlanError(f"row {st.row} (target {st.target!r}) turns {a} to {v:g} deg but the controller's "
                                 f"axes are {ctrl}: no {a} axis to turn (--axes names them)")
     rotary = bool(have) and any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    steps = steps[from_row:]                  # plan_steps: one step per plan row, in plan order
     check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
     axes = ctrl if rotary else "XYZ"
@@ -193,8 +208,20 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
     saved = {a: f"#<_vmt_wcs_{a.lower()}>" for a in axes + "R"}
     zero = " ".join(f"{a}0" for a in axes) + " R0"
     back = " ".join(f"{a}{saved[a]}" for a in axes + "R")
+    if from_row:
+        title = (f"(vmt probing program: rows {from_row}..{plan.n - 1}, {len(steps)} of {plan.n} touches from "
+                 f"{Path(plan.source).name}, continuing a run that stopped at row {from_row})")
+        logging = [f"(LOGAPPEND: {probe_file} must hold that run's lines N0..N{from_row - 1}; these rows follow them)",
+                   f"(a run that stopped left {wcs} zeroed: set it back from the first run's DEBUG line after this one)"]
+        opener = f"(LOGAPPEND,{probe_file})"
+    else:
+        title = f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})"
+        logging = [f"(LOGOPEN truncates {probe_file}: after a stop, copy or import it before running this program "
+                   "again;)",
+                   "(continue instead: vmt machine program --from-row K, K = its line count, appends to it)"]
+        opener = f"(LOGOPEN,{probe_file})"
     out = ["%",
-           f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})",
+           title,
            f"(coordinates: {wcs} set to zero with no rotation [R0] and selected, G92/G52 offsets)",
            "(suspended [G92.2]: the probe file holds machine coordinates)",
            f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
@@ -203,6 +230,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
            "each LOG line carries its G38.2 move as G91 G38.2 words, start to end:)",
            "(vmt import linuxcnc reads the stroke from them and checks each touch within it)",
+           *logging,
            "M70"]
     out += [f"{saved[a]} = #{base + (9 if a == 'R' else 'XYZABC'.index(a))}" for a in axes + "R"]
     out += ["#<_vmt_g92_on> = #5210",
@@ -211,7 +239,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
             f"G10 L2 P{wcs_p} {zero}",
             wcs,
             "G92.2",
-            f"(LOGOPEN,{probe_file})"]
+            opener]
     prev = None
     for st, moves in motion(steps, settings, rotary=rotary):     # the rotary axes turn alone, at safe Z
         label = f"row {st.row} setup {st.setup} target {st.target}"
@@ -507,8 +535,10 @@ def _short_file_note(k: int, n: int, kind: str, numbered: bool) -> str:
                 "aborted")
     logged = ("its LOG lines numbered 0..{}, one per probe".format(k - 1) if numbered
               else "a LOGOPEN file has a line for every probe its program logged")
+    more = (f"; to continue: vmt machine program --from-row {k} (appends to this file: keep it)" if numbered
+            else "")
     return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort; "
-            f"{logged}); {rest} marked aborted")
+            f"{logged}); {rest} marked aborted{more}")
 
 
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,

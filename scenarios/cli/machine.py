@@ -67,6 +67,11 @@ def register(sub) -> None:
     g.add_argument("--probe-file", default="vmt-probe.txt",
                    help="file named in (LOGOPEN,...): one line per touch, numbered by its plan row")
     g.add_argument("--wcs", default="G59.3", help="work coordinate system zeroed and used (G59.3)")
+    g.add_argument("--from-row", type=int, default=0, metavar="K",
+                   help="continue a run that stopped at plan row K (K = the probe file's line count; vmt import "
+                        "linuxcnc names it): rows K on, the probe file opened with LOGAPPEND so its lines stay. "
+                        "Default 0: the whole plan, LOGOPEN, which empties the file: copy or import it before "
+                        "running a program again")
     g.add_argument("--axes", help="the controller's axes, e.g. XYZAC ([TRAJ] COORDINATES): a word for each of its "
                                   "rotary axes and no other (LinuxCNC refuses a letter its machine lacks); default: "
                                   "--machine's, else the machine the plan names (its kinematic_chain)")
@@ -185,12 +190,18 @@ def run_program(args) -> int:
             axes, source = program_axes(plan)
         elif args.axes is not None:
             source = "--axes"
-        text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs, axes=axes)
+        text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs, axes=axes,
+                            from_row=args.from_row)
     out = write_text_atomic(args.out, text, special=True)
     from core.exceptions import counted
 
-    print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, axes {axes} ({source}), "
-          f"probe file {args.probe_file}")
+    if args.from_row:
+        print(f"{out}: LinuxCNC program, rows {args.from_row}..{plan.n - 1} ({plan.n - args.from_row} of "
+              f"{counted(plan.n, 'touch')}), axes {axes} ({source}), appending to probe file {args.probe_file} "
+              f"(LOGAPPEND: it must hold rows 0..{args.from_row - 1})")
+    else:
+        print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, axes {axes} ({source}), "
+              f"probe file {args.probe_file} (LOGOPEN empties it: after a stop, copy it and continue with --from-row)")
     return 0
 
 

@@ -177,3 +177,86 @@ def test_program_imports_back(plans, tmp_path):
     out = tmp_path / "cnc.csv"
     assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"), "--out", str(out)]) == 0
     assert read_probe_log(out).ok.all()
+
+
+# --------------------------------------------------------------------------- a run continued (review32a F3)
+def _as_linuxcnc_writes(text, xyz):
+    """The probe file LinuxCNC writes running ``text`` with every probe touching at ``xyz[row]``: each LOG line
+    with #5061-#5063 expanded (6 decimals, as LinuxCNC's %f)."""
+    out = []
+    for ln in text.splitlines():
+        m = re.match(r"\(LOG,N(\d+) (.*)\)$", ln)
+        if m:
+            p = xyz[int(m[1])]
+            out.append(f"N{m[1]} " + m[2].replace("X#5061 Y#5062 Z#5063", f"X{p[0]:.6f} Y{p[1]:.6f} Z{p[2]:.6f}"))
+    return out
+
+
+def test_from_row_appends_and_imports_as_one_run(plans, tmp_path, capsys):
+    """A run that stopped at row K, continued with --from-row K: the second program opens the file with LOGAPPEND
+    (LinuxCNC: fopen "at", emccanon.cc), starts at row K (Z alone to the safe Z, then the set-up's turn), and the
+    two runs' lines import as one file, every touch on its row, equal to a run of the whole plan. The default
+    program opens with LOGOPEN (fopen "wt": it empties the file) and says so in its header."""
+    plan = read_probe_log(plans / "plan5.csv")
+    rng = np.random.default_rng(5)
+    xyz = np.column_stack([plan.col(c) for c in ("Xn_mm", "Yn_mm", "Zn_mm")])
+    d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
+    xyz = xyz + d * rng.uniform(-0.05, 0.05, (plan.n, 1))        # touches along each row's line, +-50 um
+    rc, whole = program(plans, "plan5.csv")
+    assert rc == 0 and "LOGOPEN empties it" in capsys.readouterr().out
+    assert "(LOGOPEN,probe.txt)" in whole and "(LOGOPEN truncates probe.txt: after a stop, copy or import" in whole
+    k = 150                                                         # in set-up C75 (rows 92..183)
+    first = _as_linuxcnc_writes(whole, xyz)[:k]                      # the run stopped at row k (a miss)
+    rc, rest = program(plans, "plan5.csv", "--from-row", str(k))
+    out = capsys.readouterr().out
+    assert rc == 0 and f"rows {k}..{plan.n - 1} ({plan.n - k} of {plan.n} touches)" in out and "LOGAPPEND" in out
+    lines = rest.splitlines()
+    assert "(LOGAPPEND,probe.txt)" in lines and "(LOGOPEN,probe.txt)" not in lines
+    assert f"(LOGAPPEND: probe.txt must hold that run's lines N0..N{k - 1}; these rows follow them)" in lines
+    logs = [ln for ln in lines if ln.startswith("(LOG,N")]
+    assert len(logs) == plan.n - k and logs[0].startswith(f"(LOG,N{k} ") and logs[-1].startswith(f"(LOG,N{plan.n - 1} ")
+    moves = [ln for ln in lines if ln.startswith("G1 ")]
+    assert moves[0] == "G1 Z80.000000 F1000.0"                      # Z alone first: X, Y unknown after a stop
+    assert moves[1] == "G1 Z80.000000 A0.0000 C75.0000 F1000.0"     # then the row's set-up angles, alone
+    # the second run's rows, as LinuxCNC appends them
+    second = _as_linuxcnc_writes(rest, xyz)
+    f = tmp_path / "probe.txt"
+    f.write_text("\n".join(first + second) + "\n")
+    one = tmp_path / "one.txt"
+    one.write_text("\n".join(_as_linuxcnc_writes(whole, xyz)) + "\n")
+    assert f.read_text() == one.read_text()                         # the same lines as one whole run
+    out = tmp_path / "cnc.csv"
+    assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"), "--out", str(out)]) == 0
+    log = read_probe_log(out)
+    assert log.ok.all() and np.abs(log.positions_mm() - xyz).max() < 6e-7    # the file's 6 decimals: 0.5 nm
+    # the wrong K (a row skipped, or repeated) leaves a gap the import refuses, naming the line
+    rc, skip = program(plans, "plan5.csv", "--from-row", str(k + 1))
+    f.write_text("\n".join(first + _as_linuxcnc_writes(skip, xyz)) + "\n")
+    capsys.readouterr()
+    assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"line {k + 1}: N{k + 1}, but it is probe line {k + 1}, plan row {k}'s" in err
+
+
+@pytest.mark.parametrize("k", ["-1", "368", "1.5", "x"])
+def test_bad_from_row_is_refused(plans, capsys, k):
+    capsys.readouterr()
+    try:
+        rc, _ = program(plans, "plan5.csv", "--from-row", k)
+    except SystemExit as e:          # argparse's own refusal of a non-integer (one line, status 2)
+        rc = e.code
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and "--from-row" in err and "Traceback" not in err, err
+    assert not (plans / "p.ngc").exists()
+
+
+def test_a_stopped_import_names_the_row_to_continue_from(plans, tmp_path, capsys):
+    """`vmt import linuxcnc` of a stopped run's numbered file says the --from-row that continues it."""
+    plan = read_probe_log(plans / "plan5.csv")
+    xyz = np.column_stack([plan.col(c) for c in ("Xn_mm", "Yn_mm", "Zn_mm")])
+    rc, whole = program(plans, "plan5.csv")
+    f = tmp_path / "probe.txt"
+    f.write_text("\n".join(_as_linuxcnc_writes(whole, xyz)[:3]) + "\n")
+    capsys.readouterr()
+    assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"), "--out", str(tmp_path / "l.csv")]) == 0
+    assert "to continue: vmt machine program --from-row 3 (appends to this file: keep it)" in capsys.readouterr().out
