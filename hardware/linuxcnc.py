@@ -746,6 +746,68 @@ def positioning_comp_file(test) -> str:
     return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in zip(nom, fwd, rev))
 
 
+def add_comp(old_rows, residual_rows) -> np.ndarray:
+    """The TYPE 0 table a joint needs when ``residual_rows`` was measured with ``old_rows`` loaded.
+
+    LinuxCNC keeps one table per joint (``usrmotLoadComp()`` builds it from
+    the file; src/emc/motion/usrmotintf.cc): a new ``COMP_FILE`` replaces the
+    old one, it does not add to it. A positioning test (or an identification)
+    made while the old table was active measures the residual ``r(x)``: with
+    the old table the joint goes to ``x + trim_old(x)``, ``trim_old = -d_old``
+    (``d = actual - nominal``, the file's forward or reverse less its
+    nominal), and reaches ``x - d_old(x) + E(x)``, so ``r = E - d_old`` and the
+    table to load is ``d = E = d_old + r``, to first order (``E`` taken at
+    ``x`` rather than ``x + trim``: the trims are tens of um, ``E``'s slope
+    about 1e-4, a few nm). Loading the residual's table alone gives the
+    machine ``E - r = d_old`` back: as uncorrected as before the first file
+    (review32a: the Mikron's X 24 um -> 0.66 um -> about 24 um).
+
+    Both tables are added as LinuxCNC applies each (linear between lines,
+    the end values held beyond them), on the union of their nominals, so
+    the sum is exact between and beyond the lines of either.
+
+    Parameters
+    ----------
+    old_rows, residual_rows : (k, 3) float
+        ``nominal forward reverse`` (:func:`read_comp_file`), the same unit
+        and the same joint positions (the same tool offset).
+
+    Returns
+    -------
+    (m, 3) float
+        The summed table, nominals the union of both (at 6 decimals, as written).
+
+    Raises
+    ------
+    ConfigError
+        Not (k, 3) finite rows with increasing nominals; more than :data:`COMP_SIZE` lines.
+    """
+    from core.exceptions import ConfigError
+
+    tabs = []
+    for name, r in (("old", old_rows), ("residual", residual_rows)):
+        a = np.asarray(r, float)
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 1 or not np.all(np.isfinite(a)) \
+                or np.any(np.diff(a[:, 0]) <= 0):
+            raise ConfigError(f"add_comp: the {name} table must be (k, 3) finite rows, nominals increasing")
+        tabs.append(a)
+    u = np.unique(np.round(np.concatenate([t[:, 0] for t in tabs]), 6))
+    if len(u) > COMP_SIZE:
+        raise ConfigError(f"add_comp: {len(u)} lines in the union of both tables' nominals, LinuxCNC takes at most "
+                          f"{COMP_SIZE} per joint")
+    fwd, rev = u.copy(), u.copy()
+    for t in tabs:
+        fwd += np.interp(u, t[:, 0], t[:, 1] - t[:, 0])
+        rev += np.interp(u, t[:, 0], t[:, 2] - t[:, 0])
+    return np.column_stack([u, fwd, rev])
+
+
+def comp_text(rows) -> str:
+    """``nominal forward reverse`` lines of a TYPE 0 table (6 decimals, no header: LinuxCNC stops at the first
+    line that is not three numbers)."""
+    return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in np.asarray(rows, float))
+
+
 def read_comp_file(path) -> np.ndarray:
     """Read a LinuxCNC compensation file: (k, 3) ``nominal forward reverse`` as written (machine units).
 
