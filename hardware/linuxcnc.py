@@ -123,10 +123,11 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
     chain = plan.meta.get("kinematic_chain")
     if chain:
         from core.chain import parse_chain
+        from core.exceptions import ConfigError
 
         try:
             return "XYZ" + "".join(parse_chain(chain).rotary_axes), "the plan's kinematic_chain"
-        except Exception:   # a chain vmt cannot parse names no axes: fall through to the machine's name
+        except ConfigError:     # a chain vmt cannot parse names no axes: the machine's name, else --axes
             pass
     name = plan.meta.get("machine")
     if name:
