@@ -140,7 +140,7 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
         raise PlanError("the plan has rotary columns (A_deg, B_deg, C_deg) but names no machine: name the "
                         "controller's axes with --axes (e.g. XYZAC) or give --machine (LinuxCNC refuses a word "
                         "for an axis it lacks)")
-    return "XYZ", "the plan (no rotary columns)"
+    return "XYZ", "the plan has no rotary columns"
 
 
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
@@ -213,7 +213,8 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         title = (f"(vmt probing program: rows {from_row}..{plan.n - 1}, {len(steps)} of {plan.n} touches from "
                  f"{Path(plan.source).name}, continuing a run that stopped at row {from_row})")
         logging = [f"(LOGAPPEND: {probe_file} must hold that run's lines N0..N{from_row - 1}; these rows follow them)",
-                   f"(a run that stopped left {wcs} zeroed: set it back from the first run's DEBUG line after this one)"]
+                   f"(a run that stopped left {wcs} zeroed: set it back from the first run's DEBUG line after "
+                   "this one)"]
         opener = f"(LOGAPPEND,{probe_file})"
     else:
         title = f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})"

@@ -74,7 +74,8 @@ def _mfb(args) -> int:
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
-        from scenarios.mfb import COMP_FILES_REPLACE, compensation_range, describe_comp_line, describe_compensation_range
+        from scenarios.mfb import (COMP_FILES_REPLACE, compensation_range, describe_comp_line,
+                                   describe_compensation_range)
 
         print(describe_compensation_range(compensation_range(r.plan.nodes, r.strokes_m)))
         print(f"note: {COMP_FILES_REPLACE}")

@@ -138,7 +138,7 @@ def test_library_rules():
 
     s = ProbeSettings(limits_mm=((-300, 300),) * 3, safe_z_mm=30.0)
     flat = plan_log()
-    assert program_axes(flat) == ("XYZ", "the plan (no rotary columns)")
+    assert program_axes(flat) == ("XYZ", "the plan has no rotary columns")
     chained = _with_rotary(flat, meta={**flat.meta, "kinematic_chain": "V[w-C-A-b-Y-X-Z-(C)-t]"})
     assert program_axes(chained) == ("XYZAC", "the plan's kinematic_chain")
     named = _with_rotary(flat, meta={**flat.meta, "machine": "mikron-ucp710"})
@@ -258,5 +258,6 @@ def test_a_stopped_import_names_the_row_to_continue_from(plans, tmp_path, capsys
     f = tmp_path / "probe.txt"
     f.write_text("\n".join(_as_linuxcnc_writes(whole, xyz)[:3]) + "\n")
     capsys.readouterr()
-    assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"), "--out", str(tmp_path / "l.csv")]) == 0
+    assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"),
+                 "--out", str(tmp_path / "l.csv")]) == 0
     assert "to continue: vmt machine program --from-row 3 (appends to this file: keep it)" in capsys.readouterr().out
