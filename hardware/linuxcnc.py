@@ -16,7 +16,7 @@ The moves are the live campaign's (:func:`hardware.campaign.approach`): the
 first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
 turn only there, in a line of their own, X, Y, Z unchanged. Only the
 controller's axes get words (:func:`program_axes`: ``axes``, else the
-plan's machine): LinuxCNC refuses a letter its machine lacks.
+plan's chain): LinuxCNC refuses a letter its machine lacks.
 
 LinuxCNC writes the probed point in the coordinate system in effect
 (offsets and XY rotation removed). The program therefore saves the modal
@@ -109,9 +109,10 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
     LinuxCNC's interpreter refuses an axis letter its machine lacks ("Bad character 'b' used",
     rs274ngc_pre.cc: the word readers of axes outside the axis mask are dropped), so the program
     writes a word for every rotary axis the controller has and no other. Its axes are, first
-    found: ``axes`` (``--axes``, or the CLI's ``--machine``); the plan's ``kinematic_chain``
-    (every simulated plan has it: the nmv3000's gives ``XYZAC``); the built-in machine its
-    ``machine`` names; ``XYZ`` for a plan without A, B, C columns.
+    found: ``axes`` (``--axes``, or the CLI's ``--machine``, or the built-in machine a plan
+    without a chain names: ``vmt machine program``); the plan's ``kinematic_chain`` (every
+    simulated plan has it: the nmv3000's gives ``XYZAC``); ``XYZ`` for a plan without A, B, C
+    columns.
 
     Raises
     ------
@@ -129,13 +130,6 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
             return "XYZ" + "".join(parse_chain(chain).rotary_axes), "the plan's kinematic_chain"
         except ConfigError:     # a chain vmt cannot parse names no axes: the machine's name, else --axes
             pass
-    name = plan.meta.get("machine")
-    if name:
-        from sim.machinefile import builtin_names, truth_machine
-
-        if name in builtin_names():
-            rot = truth_machine(name, "none").config.parsed_chain.rotary_axes
-            return "XYZ" + "".join(rot), f"the plan's machine {name}"
     if any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg")):
         raise PlanError("the plan has rotary columns (A_deg, B_deg, C_deg) but names no machine: name the "
                         "controller's axes with --axes (e.g. XYZAC) or give --machine (LinuxCNC refuses a word "

@@ -185,6 +185,13 @@ def run_program(args) -> int:
             axes, source = "XYZ" + "".join(cfg.parsed_chain.rotary_axes), f"machine {args.machine}"
     from scenarios.cli.guard import about_file
 
+    name = plan.meta.get("machine")
+    if axes is None and not plan.meta.get("kinematic_chain") and name:
+        from sim.machinefile import builtin_names, truth_machine
+
+        if name in builtin_names():     # a plan that names a built-in machine but carries no chain
+            axes = "XYZ" + "".join(truth_machine(name, "none").config.parsed_chain.rotary_axes)
+            source = f"the plan's machine {name}"
     with about_file(args.plan):     # 'row 23 (target ...): approach ... is outside the soft limits': of this plan
         if axes is None:
             axes, source = program_axes(plan)

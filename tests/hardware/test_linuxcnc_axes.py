@@ -16,7 +16,7 @@ import pytest
 
 from conftest import LIMITS, plan_log
 from core.exceptions import PlanError
-from core.probelog import make_log, read_probe_log
+from core.probelog import make_log, read_probe_log, write_probe_log
 from hardware.campaign import ProbeSettings
 from hardware.linuxcnc import part_program
 from scenarios.cli import main
@@ -109,6 +109,25 @@ def test_an_axis_the_controller_lacks_is_refused(plans, capsys, extra, msg):
     assert not (plans / "p.ngc").exists()
 
 
+def test_plan_naming_a_machine_without_a_chain(plans, tmp_path, capsys):
+    """A plan that names a built-in machine but carries no kinematic_chain (made by hand, or by an older vmt):
+    the machine's axes; a rotary plan naming nothing is refused in one line."""
+    plan = read_probe_log(plans / "plan5.csv")
+    meta = {k: v for k, v in plan.meta.items() if k != "kinematic_chain"}
+    p = tmp_path / "named.csv"
+    write_probe_log(p, make_log(dict(plan.columns), meta))
+    capsys.readouterr()
+    out = tmp_path / "n.ngc"
+    assert main(["machine", "program", "--plan", str(p), "--out", str(out), *README_ARGS]) == 0
+    assert "axes XYZAC (the plan's machine nmv3000)" in capsys.readouterr().out
+    assert {a for a, _ in code_words(out.read_text())} == set("XYZAC")
+    meta.pop("machine")
+    write_probe_log(p, make_log(dict(plan.columns), meta))
+    assert main(["machine", "program", "--plan", str(p), "--out", str(out), *README_ARGS]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "rotary columns (A_deg, B_deg, C_deg) but names no machine" in err
+
+
 def test_machine_without_the_axis_is_refused(plans, capsys):
     """--machine vmc-3axis (no rotary axis) under the nmv3000 plan: its C turns are refused by row."""
     capsys.readouterr()
@@ -130,7 +149,7 @@ def _with_rotary(plan, a=None, b=None, c=None, meta=None):
 
 
 def test_library_rules():
-    """program_axes: --axes first, then the plan's chain, then its built-in machine, XYZ without rotary columns;
+    """program_axes: --axes first, then the plan's chain, XYZ without rotary columns;
     a rotary plan of no known machine is refused (no guess: writing A B C was the bug, writing none would leave
     a real table where it stands). A non-zero B on an XYZAC controller is refused naming row and angle; a B
     column of zeros is not a turn and writes no B."""
@@ -141,9 +160,7 @@ def test_library_rules():
     assert program_axes(flat) == ("XYZ", "the plan has no rotary columns")
     chained = _with_rotary(flat, meta={**flat.meta, "kinematic_chain": "V[w-C-A-b-Y-X-Z-(C)-t]"})
     assert program_axes(chained) == ("XYZAC", "the plan's kinematic_chain")
-    named = _with_rotary(flat, meta={**flat.meta, "machine": "mikron-ucp710"})
-    assert program_axes(named) == ("XYZAC", "the plan's machine mikron-ucp710")
-    assert program_axes(named, "XYZB") == ("XYZB", "--axes")
+    assert program_axes(chained, "XYZB") == ("XYZB", "--axes")
     bare = _with_rotary(flat)
     with pytest.raises(PlanError, match=r"rotary columns .* names no machine: .*--axes \(e\.g\. XYZAC\)"):
         part_program(bare, s)
