@@ -14,7 +14,9 @@ fall one plan row early; a ``LOG`` line is written for every probe (the
 interpreter expands it after the probe, src/emc/rs274ngc/interp_convert.cc).
 The moves are the live campaign's (:func:`hardware.campaign.approach`): the
 first is Z alone to the safe Z, and A, B, C (plans with rotary columns)
-turn only there, in a line of their own, X, Y, Z unchanged.
+turn only there, in a line of their own, X, Y, Z unchanged. Only the
+controller's axes get words (:func:`program_axes`: ``axes``, else the
+plan's chain): LinuxCNC refuses a letter its machine lacks.
 
 LinuxCNC writes the probed point in the coordinate system in effect
 (offsets and XY rotation removed). The program therefore saves the modal
@@ -77,17 +79,67 @@ _WCS_P = {"G54": 1, "G55": 2, "G56": 3, "G57": 4, "G58": 5, "G59": 6,
           "G59.1": 7, "G59.2": 8, "G59.3": 9}
 
 
-def _words(p_mm, rot_deg=None, axes: str = "XYZ") -> str:
+def _words(p_mm, rot_deg=None, axes: str = "XYZ", rotary: str = "ABC") -> str:
     # 6 decimals (1 nm), as LinuxCNC writes its probe file: 4 would bend each probing line by up
     # to 0.05 um per axis, a lateral error of the touch on any surface not square to an axis
     w = " ".join(f"{a}{v:.6f}" for a, v in zip("XYZ", p_mm) if a in axes)
-    if rot_deg is not None:
-        w += " " + " ".join(f"{a}{v:.4f}" for a, v in zip("ABC", rot_deg))
+    if rot_deg is not None:     # only the controller's rotary axes: LinuxCNC refuses a letter it lacks
+        w += "".join(f" {a}{v:.4f}" for a, v in zip("ABC", rot_deg) if a in rotary)
     return w
 
 
+def check_axes(axes: str) -> str:
+    """``axes`` as LinuxCNC's ``[TRAJ] COORDINATES`` names them for vmt: X, Y, Z then rotary axes among A, B, C
+    (``"XYZAC"``), upper case; the same rule and message as ``vmt probe --axes`` (:func:`hardware.grbl.check_axes`).
+
+    Raises
+    ------
+    PlanError
+        Anything else.
+    """
+    a = str(axes).upper()
+    if a[:3] != "XYZ" or len(set(a)) != len(a) or any(x not in "ABC" for x in a[3:]):
+        raise PlanError(f"--axes {axes!r}: expected X, Y, Z then rotary axes A, B, C (e.g. XYZAC)")
+    return a
+
+
+def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
+    """(the controller's axes, where they came from) for :func:`part_program` of ``plan``.
+
+    LinuxCNC's interpreter refuses an axis letter its machine lacks ("Bad character 'b' used",
+    rs274ngc_pre.cc: the word readers of axes outside the axis mask are dropped), so the program
+    writes a word for every rotary axis the controller has and no other. Its axes are, first
+    found: ``axes`` (``--axes``, or the CLI's ``--machine``, or the built-in machine a plan
+    without a chain names: ``vmt machine program``); the plan's ``kinematic_chain`` (every
+    simulated plan has it: the nmv3000's gives ``XYZAC``); ``XYZ`` for a plan without A, B, C
+    columns.
+
+    Raises
+    ------
+    PlanError
+        Bad ``axes``; a plan with rotary columns whose machine is not known (name it: ``--axes``).
+    """
+    if axes is not None:
+        return check_axes(axes), "--axes"
+    chain = plan.meta.get("kinematic_chain")
+    if chain:
+        from core.chain import parse_chain
+        from core.exceptions import ConfigError
+
+        try:
+            return "XYZ" + "".join(parse_chain(chain).rotary_axes), "the plan's kinematic_chain"
+        except ConfigError:     # a chain vmt cannot parse names no axes: the machine's name, else --axes
+            pass
+    if any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg")):
+        raise PlanError("the plan has rotary columns (A_deg, B_deg, C_deg) but names no machine: name the "
+                        "controller's axes with --axes (e.g. XYZAC) or give --machine (LinuxCNC refuses a word "
+                        "for an axis it lacks)")
+    return "XYZ", "the plan has no rotary columns"
+
+
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
-                 wcs: str = "G59.3", require_limits: bool = True) -> str:
+                 wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None,
+                 from_row: int = 0) -> str:
     """The LinuxCNC part program probing ``plan`` (safety-checked like a live campaign).
 
     Parameters
@@ -102,28 +154,70 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
         File named in ``(LOGOPEN,...)``, as LinuxCNC will resolve it.
     wcs : str
         Work coordinate system zeroed and used (``G54`` ... ``G59.3``).
+    axes : str, optional
+        The controller's axes (``[TRAJ] COORDINATES``: ``"XYZAC"``); default
+        from the plan (:func:`program_axes`). The program writes a word for
+        every rotary axis among them (from the plan's A, B, C; 0 for a
+        column it lacks) and no other: LinuxCNC stops at a letter its
+        machine lacks.
+    from_row : int
+        First plan row to probe. 0: the whole plan, the probe file opened
+        with ``LOGOPEN``, which truncates it (src/emc/task/emccanon.cc:
+        ``fopen(name, "wt")``): the program's header says to copy or import
+        it before a re-run. ``K > 0``: the run that stopped at row ``K``
+        continued, rows ``K`` on, the file opened with ``LOGAPPEND``
+        (``fopen(name, "at")``): its lines ``N0..N<K-1>`` stay and the new
+        ones follow, one file that :func:`import_probe_file` reads as one
+        run (rows 0, 1, 2, ... checked; a wrong ``K`` leaves a gap or a
+        repeat, refused naming the line).
 
     Raises
     ------
     PlanError
-        Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take.
+        Limits or feeds violated, unknown ``wcs``, a file name LinuxCNC cannot take;
+        bad or unknown ``axes`` (:func:`program_axes`); a row that turns an axis
+        the controller lacks (named with its angle).
     """
     if wcs not in _WCS_P:
         raise PlanError(f"--wcs {wcs!r}: expected one of {', '.join(_WCS_P)}")
     if any(c in probe_file for c in "()\n"):
         raise PlanError(f"probe file {probe_file!r}: parentheses and newlines are not allowed")
+    if isinstance(from_row, bool) or not isinstance(from_row, (int, np.integer)) or not 0 <= from_row < plan.n:
+        raise PlanError(f"--from-row {from_row!r}: expected a plan row, 0..{plan.n - 1} (the plan has "
+                        f"{counted(plan.n, 'row')})")
+    ctrl, _ = program_axes(plan, axes)
     steps = plan_steps(plan, settings)
-    rotary = any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    have = ctrl[3:]
+    for st in steps:        # a turn of an axis the controller lacks cannot be written: refused by row
+        for a, v in zip("ABC", st.rot_deg):
+            if a not in have and abs(v) > 1e-9:
+                raise PlanError(f"row {st.row} (target {st.target!r}) turns {a} to {v:g} deg but the controller's "
+                                f"axes are {ctrl}: no {a} axis to turn (--axes names them)")
+    rotary = bool(have) and any(plan.has(c) for c in ("A_deg", "B_deg", "C_deg"))
+    steps = steps[from_row:]                  # plan_steps: one step per plan row, in plan order
     check_program(steps, settings, require_limits=require_limits, rotary=rotary)
     fm, fp = settings.move_feed_mm_min, settings.probe_feed_mm_min
-    axes = "XYZABC" if rotary else "XYZ"
+    axes = ctrl if rotary else "XYZ"
     wcs_p = _WCS_P[wcs]
     base = 5201 + 20 * wcs_p                  # parameters of the frame: X Y Z A B C U V W R
     saved = {a: f"#<_vmt_wcs_{a.lower()}>" for a in axes + "R"}
     zero = " ".join(f"{a}0" for a in axes) + " R0"
     back = " ".join(f"{a}{saved[a]}" for a in axes + "R")
+    if from_row:
+        title = (f"(vmt probing program: rows {from_row}..{plan.n - 1}, {len(steps)} of {plan.n} touches from "
+                 f"{Path(plan.source).name}, continuing a run that stopped at row {from_row})")
+        logging = [f"(LOGAPPEND: {probe_file} must hold that run's lines N0..N{from_row - 1}; these rows follow them)",
+                   f"(a run that stopped left {wcs} zeroed: set it back from the first run's DEBUG line after "
+                   "this one)"]
+        opener = f"(LOGAPPEND,{probe_file})"
+    else:
+        title = f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})"
+        logging = [f"(LOGOPEN truncates {probe_file}: after a stop, copy or import it before running this program "
+                   "again;)",
+                   "(continue instead: vmt machine program --from-row K, K = its line count, appends to it)"]
+        opener = f"(LOGOPEN,{probe_file})"
     out = ["%",
-           f"(vmt probing program: {plan.n} touches from {Path(plan.source).name})",
+           title,
            f"(coordinates: {wcs} set to zero with no rotation [R0] and selected, G92/G52 offsets)",
            "(suspended [G92.2]: the probe file holds machine coordinates)",
            f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
@@ -132,6 +226,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
            "each LOG line carries its G38.2 move as G91 G38.2 words, start to end:)",
            "(vmt import linuxcnc reads the stroke from them and checks each touch within it)",
+           *logging,
            "M70"]
     out += [f"{saved[a]} = #{base + (9 if a == 'R' else 'XYZABC'.index(a))}" for a in axes + "R"]
     out += ["#<_vmt_g92_on> = #5210",
@@ -140,13 +235,13 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
             f"G10 L2 P{wcs_p} {zero}",
             wcs,
             "G92.2",
-            f"(LOGOPEN,{probe_file})"]
+            opener]
     prev = None
     for st, moves in motion(steps, settings, rotary=rotary):     # the rotary axes turn alone, at safe Z
         label = f"row {st.row} setup {st.setup} target {st.target}"
         out.append("(" + label.replace("(", "[").replace(")", "]") + ")")
         for m in moves:
-            out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes)} F{fm:.1f}")
+            out.append(f"G1 {_words(m.xyz_mm, m.rot_deg, m.axes, have)} F{fm:.1f}")
         out.append(f"G38.2 {_words(st.end_mm)} F{fp:.1f}")
         # the touch, numbered by its plan row, and the probing move it ended (start to end, as GRBL's G91 G38.2
         # carries it): the import's along-the-line bound is that stroke
@@ -436,8 +531,10 @@ def _short_file_note(k: int, n: int, kind: str, numbered: bool) -> str:
                 "aborted")
     logged = ("its LOG lines numbered 0..{}, one per probe".format(k - 1) if numbered
               else "a LOGOPEN file has a line for every probe its program logged")
+    more = (f"; to continue: vmt machine program --from-row {k} (appends to this file: keep it)" if numbered
+            else "")
     return (f"lines for {k} of {n} plan rows: the program stopped at plan row {k} (a G38.2 miss or an abort; "
-            f"{logged}); {rest} marked aborted")
+            f"{logged}); {rest} marked aborted{more}")
 
 
 def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
@@ -643,6 +740,68 @@ def positioning_comp_file(test) -> str:
     fwd = nom + np.nanmean(t.dev_up, axis=1)
     rev = nom + np.nanmean(t.dev_down, axis=1)
     return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in zip(nom, fwd, rev))
+
+
+def add_comp(old_rows, residual_rows) -> np.ndarray:
+    """The TYPE 0 table a joint needs when ``residual_rows`` was measured with ``old_rows`` loaded.
+
+    LinuxCNC keeps one table per joint (``usrmotLoadComp()`` builds it from
+    the file; src/emc/motion/usrmotintf.cc): a new ``COMP_FILE`` replaces the
+    old one, it does not add to it. A positioning test (or an identification)
+    made while the old table was active measures the residual ``r(x)``: with
+    the old table the joint goes to ``x + trim_old(x)``, ``trim_old = -d_old``
+    (``d = actual - nominal``, the file's forward or reverse less its
+    nominal), and reaches ``x - d_old(x) + E(x)``, so ``r = E - d_old`` and the
+    table to load is ``d = E = d_old + r``, to first order (``E`` taken at
+    ``x`` rather than ``x + trim``: the trims are tens of um, ``E``'s slope
+    about 1e-4, a few nm). Loading the residual's table alone gives the
+    machine ``E - r = d_old`` back: as uncorrected as before the first file
+    (review32a: the Mikron's X 24 um -> 0.66 um -> about 24 um).
+
+    Both tables are added as LinuxCNC applies each (linear between lines,
+    the end values held beyond them), on the union of their nominals, so
+    the sum is exact between and beyond the lines of either.
+
+    Parameters
+    ----------
+    old_rows, residual_rows : (k, 3) float
+        ``nominal forward reverse`` (:func:`read_comp_file`), the same unit
+        and the same joint positions (the same tool offset).
+
+    Returns
+    -------
+    (m, 3) float
+        The summed table, nominals the union of both (at 6 decimals, as written).
+
+    Raises
+    ------
+    ConfigError
+        Not (k, 3) finite rows with increasing nominals; more than :data:`COMP_SIZE` lines.
+    """
+    from core.exceptions import ConfigError
+
+    tabs = []
+    for name, r in (("old", old_rows), ("residual", residual_rows)):
+        a = np.asarray(r, float)
+        if a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 1 or not np.all(np.isfinite(a)) \
+                or np.any(np.diff(a[:, 0]) <= 0):
+            raise ConfigError(f"add_comp: the {name} table must be (k, 3) finite rows, nominals increasing")
+        tabs.append(a)
+    u = np.unique(np.round(np.concatenate([t[:, 0] for t in tabs]), 6))
+    if len(u) > COMP_SIZE:
+        raise ConfigError(f"add_comp: {len(u)} lines in the union of both tables' nominals, LinuxCNC takes at most "
+                          f"{COMP_SIZE} per joint")
+    fwd, rev = u.copy(), u.copy()
+    for t in tabs:
+        fwd += np.interp(u, t[:, 0], t[:, 1] - t[:, 0])
+        rev += np.interp(u, t[:, 0], t[:, 2] - t[:, 0])
+    return np.column_stack([u, fwd, rev])
+
+
+def comp_text(rows) -> str:
+    """``nominal forward reverse`` lines of a TYPE 0 table (6 decimals, no header: LinuxCNC stops at the first
+    line that is not three numbers)."""
+    return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in np.asarray(rows, float))
 
 
 def read_comp_file(path) -> np.ndarray:

@@ -1182,6 +1182,9 @@ class ScenarioResult:
     #: axis -> (min, max) axis positions (reading + J, m) the truth machine's strokes reach
     #: (``strokes`` + its ``J_m``): where the compensation files run beyond the node box (review29b F1)
     strokes_m: dict = field(default=None, compare=False)
+    #: the truth machine's probe offset J (reading = axis position - J), m: where the per-axis files are exact
+    #: (:func:`describe_comp_line`)
+    J_m: tuple = field(default=None, compare=False)
 
     def write_comp(self, directory) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
@@ -1258,6 +1261,33 @@ def describe_compensation_range(doc: dict) -> str:
     tail = ("outside it the correction is an extrapolation along the tables' end tangents (the .comp files and "
             "the JSON alike)" if st else "outside it LinuxCNC holds the files' end values")
     return f"compensated range (the node box, axis positions, mm): {ax}; {tail}"
+
+
+#: What the run prints when it writes ``.comp`` files (review32a F2): how LinuxCNC takes them.
+COMP_FILES_REPLACE = ("the .comp files replace each joint's BACKLASH and any earlier COMP_FILE in LinuxCNC (one "
+                      "table per joint; BACKLASH is not used with a COMP_FILE) and carry no lost motion (forward = "
+                      "reverse): they are right for a machine measured with both off; an identification made with "
+                      "a table loaded measured its residual, to be added to that table, not loaded in its place "
+                      "(README, 'Compensation files')")
+
+
+def describe_comp_line(nodes, J_m) -> str:
+    """Where the per-axis ``.comp`` files are exact (review32a F4): each carries its axis's positioning error
+    ``E<a><a>`` of vmt's model, the error on the line through readings 0 of the other two axes (zero Abbe
+    arms); elsewhere the angular errors' Abbe terms stay. ``nodes``: axis -> node positions (axis positions,
+    m); ``J_m``: the machine's probe offset (reading = axis position - J). Says which lines miss the node box."""
+    J = np.asarray(J_m, float)
+    box = {a: (float(nodes[a][0]) - J[i], float(nodes[a][-1]) - J[i]) for i, a in enumerate("XYZ")}
+    out = []
+    for a in "XYZ":
+        others = [b for b in "XYZ" if b != a]
+        miss = [b for b in others if not box[b][0] - 1e-9 <= 0.0 <= box[b][1] + 1e-9]
+        where = (" outside the node box (" + ", ".join(f"{b} readings {box[b][0] * 1e3:.0f}..{box[b][1] * 1e3:.0f} "
+                                                          "mm" for b in miss) + ")") if miss else ""
+        out.append(f"{a}.comp on {' = '.join(others)} = 0{where}")
+    return ("the per-axis .comp files are right only on their axis's line through readings 0 of the other axes "
+            "(zero Abbe arms): " + "; ".join(out) + "; elsewhere the angular errors' Abbe terms remain (the "
+            "vmt-comp/1 JSON corrects them volumetrically; closed_loop measures what the files leave)")
 
 
 def _node_box(nodes) -> np.ndarray:
@@ -1707,7 +1737,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     if progress is not None:
         progress(steps, steps)
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas,
-                          axis_strokes_m(cfg))
+                          axis_strokes_m(cfg), tuple(float(v) for v in cfg.J_m))
 
 
 #: The residuals' model-error share in the U95 (:func:`core.volumetric.model_error_share`, review29b F2b):

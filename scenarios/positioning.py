@@ -48,7 +48,7 @@ REPORT_SHARES = (8, 66, 100)
 
 
 def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertainty=None,
-                  write_log=None, comp_file=None, progress=None) -> tuple[dict, list[str]]:
+                  write_log=None, comp_file=None, add_to=None, progress=None) -> tuple[dict, list[str]]:
     """Read a positioning test, evaluate ISO 230-2, write the JSON (and report).
 
     Parameters
@@ -69,6 +69,11 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
         Also write a LinuxCNC TYPE 0 compensation table of the axis
         (:func:`hardware.linuxcnc.positioning_comp_file`: at the axis positions,
         target + the log's ``tool_offset_mm``).
+    add_to : path, optional
+        The TYPE 0 file the joint had loaded during the test: the test measured
+        its residual, and ``comp_file`` gets their sum
+        (:func:`hardware.linuxcnc.add_comp`), not the residual alone, which
+        LinuxCNC would load in the old table's place.
     progress : callable, optional
         ``progress(done, 100)``: the share of the work done (:data:`REPORT_SHARES`), after each step.
 
@@ -78,9 +83,17 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
         The JSON report and its warnings.
     """
     from core.atomic import write_json_atomic
+    from core.exceptions import ConfigError
     from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning,
                                   write_positioning_log)
 
+    if add_to and not comp_file:
+        raise ConfigError("--add-to: give --comp-file too (the file to write: the old table plus this test's residual)")
+    old_table = None
+    if add_to:
+        from hardware.linuxcnc import read_comp_file
+
+        old_table = read_comp_file(add_to)          # a bad file is refused before anything is written
     log = load_positioning(path, kind=kind)
     test = arrange(log)
     result = iso230_2(test)
@@ -113,6 +126,15 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
         from hardware.linuxcnc import positioning_comp_file
 
         comp_text = positioning_comp_file(test)
+        if old_table is not None:
+            from hardware.linuxcnc import add_comp, comp_text as _text
+
+            residual = np.array([[float(v) for v in ln.split()] for ln in comp_text.splitlines()])
+            try:
+                comp_text = _text(add_comp(old_table, residual))
+            except ConfigError as e:
+                raise ConfigError(f"--add-to {add_to}: {e}") from None
+            rep["comp_file_added_to"] = str(add_to)
     if write_log:
         write_positioning_log(write_log, log, special=True)
     if comp_text is not None:

@@ -55,7 +55,7 @@ FILES = {
     "view": (("rrd",), (), ()),
     "plan": ((), ("out",), ()),
     "fit": (("log",), ("json",), ()),
-    "iso230-2": (("log",), ("json", "write_log", "comp_file"), ("report",)),
+    "iso230-2": (("log", "add_to"), ("json", "write_log", "comp_file"), ("report",)),
     "regress": (("study",), ("json", "junit"), ()),
     "vcmm": (("plan", "task"), ("json",), ("report",)),
 }

@@ -25,7 +25,12 @@ def register(sub) -> None:
     p.add_argument("--comp-file", metavar="COMP",
                    help="also write a LinuxCNC compensation table (COMP_FILE_TYPE 0: nominal forward reverse, the "
                         "mean deviation per target and direction) at the axis (joint) positions: target + the "
-                        "log's tool_offset_mm")
+                        "log's tool_offset_mm. LinuxCNC uses it INSTEAD of the joint's BACKLASH and of any earlier "
+                        "COMP_FILE: test with both off, or give --add-to")
+    p.add_argument("--add-to", metavar="OLD_COMP",
+                   help="with --comp-file: the compensation file the joint had loaded during the test (its COMP_FILE); "
+                        "the test measured what it left (a residual), and COMP is OLD_COMP plus that residual, "
+                        "to load in its place (the residual alone would undo OLD_COMP)")
     g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
     g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
     g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
@@ -66,7 +71,7 @@ def run(args) -> int:
     # with --report: 2-3 s wall on 2 busy cores (the plot), without it 0.1 s (the line is not drawn then)
     with progress_line("iso230-2: % of the work") as bar:
         rep, warnings = evaluate_file(args.log, args.json, args.report, kind=args.kind, uncertainty=unc,
-                                      write_log=args.write_log, comp_file=args.comp_file,
+                                      write_log=args.write_log, comp_file=args.comp_file, add_to=args.add_to,
                                       progress=bar if args.report else None)
     for w in warnings:
         print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
@@ -91,4 +96,13 @@ def run(args) -> int:
 
     print(f"wrote {args.json}" + (f" and {Path(args.report) / 'index.html'}" if args.report else "")
           + (f" and {args.write_log}" if args.write_log else "") + (f" and {args.comp_file}" if args.comp_file else ""))
+    if args.comp_file:
+        print(f"note: {args.comp_file} " + (f"is {args.add_to} plus this test's residual: load it in {args.add_to}'s "
+                                            "place" if args.add_to else COMP_FILE_NOTE))
     return 0
+
+
+#: What `--comp-file` prints (review32a F2): how LinuxCNC takes the file, where it would undo a correction.
+COMP_FILE_NOTE = ("replaces the joint's BACKLASH and any earlier COMP_FILE in LinuxCNC (one table per joint, "
+                  "BACKLASH unused with it): it is right for a test made with both off; a test made with a table "
+                  "loaded measured its residual: write --comp-file with --add-to OLD.comp")

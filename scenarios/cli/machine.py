@@ -67,8 +67,17 @@ def register(sub) -> None:
     g.add_argument("--probe-file", default="vmt-probe.txt",
                    help="file named in (LOGOPEN,...): one line per touch, numbered by its plan row")
     g.add_argument("--wcs", default="G59.3", help="work coordinate system zeroed and used (G59.3)")
+    g.add_argument("--from-row", type=int, default=0, metavar="K",
+                   help="continue a run that stopped at plan row K (K = the probe file's line count; vmt import "
+                        "linuxcnc names it): rows K on, the probe file opened with LOGAPPEND so its lines stay. "
+                        "Default 0: the whole plan, LOGOPEN, which empties the file: copy or import it before "
+                        "running a program again")
+    g.add_argument("--axes", help="the controller's axes, e.g. XYZAC ([TRAJ] COORDINATES): a word for each of its "
+                                  "rotary axes and no other (LinuxCNC refuses a letter its machine lacks); default: "
+                                  "--machine's, else the machine the plan names (its kinematic_chain)")
     add_machine_args(g, default=None, errors=False,
-                     what="take the soft limits from this machine's X, Y, Z strokes (when --limits-mm is not given)")
+                     what="take the soft limits from this machine's X, Y, Z strokes (when --limits-mm is not given) "
+                          "and the controller's axes from its chain (when --axes is not given)")
     g.set_defaults(func=run_program)
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
 
@@ -156,8 +165,11 @@ def run_program(args) -> int:
     from hardware.linuxcnc import part_program
     from scenarios.cli.options import settings_from_args
 
+    from hardware.linuxcnc import check_axes, program_axes
+
     plan = read_probe(args.plan, "machine program")
     settings = settings_from_args(args)
+    axes = None if args.axes is None else check_axes(args.axes)
     if args.machine is not None:
         from dataclasses import replace
 
@@ -166,16 +178,37 @@ def run_program(args) -> int:
 
         if args.limits:
             raise ConfigError("--machine and --limits-mm: give one (the machine's strokes are its limits)")
-        st = truth_machine(args.machine).config.strokes
+        cfg = truth_machine(args.machine).config
+        st = cfg.strokes
         settings = replace(settings, limits_mm=tuple((lo * 1e3, hi * 1e3) for lo, hi in (st[a] for a in "XYZ")))
+        if axes is None:
+            axes, source = "XYZ" + "".join(cfg.parsed_chain.rotary_axes), f"machine {args.machine}"
     from scenarios.cli.guard import about_file
 
+    name = plan.meta.get("machine")
+    if axes is None and not plan.meta.get("kinematic_chain") and name:
+        from sim.machinefile import builtin_names, truth_machine
+
+        if name in builtin_names():     # a plan that names a built-in machine but carries no chain
+            axes = "XYZ" + "".join(truth_machine(name, "none").config.parsed_chain.rotary_axes)
+            source = f"the plan's machine {name}"
     with about_file(args.plan):     # 'row 23 (target ...): approach ... is outside the soft limits': of this plan
-        text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs)
+        if axes is None:
+            axes, source = program_axes(plan)
+        elif args.axes is not None:
+            source = "--axes"
+        text = part_program(plan, settings, probe_file=args.probe_file, wcs=args.wcs, axes=axes,
+                            from_row=args.from_row)
     out = write_text_atomic(args.out, text, special=True)
     from core.exceptions import counted
 
-    print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, probe file {args.probe_file}")
+    if args.from_row:
+        print(f"{out}: LinuxCNC program, rows {args.from_row}..{plan.n - 1} ({plan.n - args.from_row} of "
+              f"{counted(plan.n, 'touch')}), axes {axes} ({source}), appending to probe file {args.probe_file} "
+              f"(LOGAPPEND: it must hold rows 0..{args.from_row - 1})")
+    else:
+        print(f"{out}: LinuxCNC program, {counted(plan.n, 'touch')}, axes {axes} ({source}), "
+              f"probe file {args.probe_file} (LOGOPEN empties it: after a stop, copy it and continue with --from-row)")
     return 0
 
 

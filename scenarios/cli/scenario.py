@@ -74,9 +74,13 @@ def _mfb(args) -> int:
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
-        from scenarios.mfb import compensation_range, describe_compensation_range
+        from scenarios.mfb import (COMP_FILES_REPLACE, compensation_range, describe_comp_line,
+                                   describe_compensation_range)
 
         print(describe_compensation_range(compensation_range(r.plan.nodes, r.strokes_m)))
+        print(f"note: {COMP_FILES_REPLACE}")
+        if r.J_m is not None:
+            print(f"note: {describe_comp_line(r.plan.nodes, r.J_m)}")
     if args.apply_comp:
         with progress_line(f"{args.name}: compensated campaigns simulated") as bar:
             loop = closed_loop(args.name, args.apply_comp, before=r, progress=bar, **kw)
@@ -243,7 +247,9 @@ def register(sub) -> None:
                      errors_default="study", errors_why="the MFB studies' truth: the realistic set without the "
                                                         "screw ripple, which their smooth models represent")
     p.add_argument("--comp", default=None, metavar="DIR",
-                   help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here")
+                   help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here "
+                        "(a .comp file replaces the joint's BACKLASH and any earlier COMP_FILE, and is right on its "
+                        "axis's line through readings 0 of the other axes: README 'Compensation files')")
     p.add_argument("--apply-comp", default=None, metavar="DIR", dest="apply_comp",
                    help="mfb scenarios: apply the compensation in DIR (X/Y/Z.comp as LinuxCNC does, and the "
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "

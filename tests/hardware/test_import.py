@@ -651,7 +651,8 @@ def test_numbered_log_file_keeps_a_repeated_touch_on_its_own_row(tmp_path, capsy
     assert "3 of 5" in log.meta["probe_file_rows"] and "PROBEOPEN" not in log.meta["probe_file_rows"]
     assert log.meta["probe_file_rows"] == ("lines for 3 of 5 plan rows: the program stopped at plan row 3 (a G38.2 "
                                            "miss or an abort; its LOG lines numbered 0..2, one per probe); rows "
-                                           "3..4 marked aborted")
+                                           "3..4 marked aborted; to continue: vmt machine program --from-row 3 "
+                                           "(appends to this file: keep it)")
 
 
 def test_short_probeopen_file_says_a_repeated_position_leaves_no_line(tmp_path, plan_path, measured, capsys):

@@ -112,7 +112,7 @@ def settings(**kw):
 
 
 def test_linuxcnc_program_turns_only_at_safe_z_alone():
-    text = part_program(rotary_plan(), settings())
+    text = part_program(rotary_plan(), settings(), axes="XYZAC")
     m = follow(text.splitlines())
     expect_turns(m)
     lines = text.splitlines()
@@ -124,7 +124,7 @@ def test_linuxcnc_program_turns_only_at_safe_z_alone():
     assert retract.startswith("G1 ") and "G38.2" in lines[k - 5] and label.startswith("(row 4 ")
     assert lines[k - 4].startswith("(LOG,N3 G1 X#5061 Y#5062 Z#5063 G91 G38.2 X")         # the touch before, logged with its row
     assert xy(rise) == xy(retract) and z(rise) == SAFE_Z and z(retract) < SAFE_Z
-    assert turn == rise.replace(" F", " A0.0000 B0.0000 C90.0000 F")
+    assert turn == rise.replace(" F", " A0.0000 C90.0000 F")      # the controller's rotary axes only
     assert z(across) == SAFE_Z and xy(across) != xy(turn) and xy(down) == xy(across) and z(down) < SAFE_Z
     assert probe.startswith("G38.2 ")
 
@@ -210,7 +210,7 @@ def test_rotary_program_without_safe_z_is_refused(tmp_path, capsys):
     plan = rotary_plan()
     no_z = ProbeSettings(limits_mm=LIMITS_MM)
     with pytest.raises(PlanError, match=r"row 0 .*rotary axes are commanded.*--safe-z-mm"):
-        part_program(plan, no_z)
+        part_program(plan, no_z, axes="XYZAC")
     with pytest.raises(PlanError, match=r"row 0 .*--safe-z-mm"):
         program_lines(plan_steps(plan, no_z), no_z, rotary=True)
     out = tmp_path / "log.csv"
@@ -220,7 +220,7 @@ def test_rotary_program_without_safe_z_is_refused(tmp_path, capsys):
     p = write_probe_log(tmp_path / "plan.csv", plan)
     capsys.readouterr()
     assert main(["machine", "program", "--plan", str(p), "--out", str(tmp_path / "p.ngc"),
-                 "--limits-mm", LIMITS]) == 2
+                 "--limits-mm", LIMITS, "--axes", "XYZAC"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--safe-z-mm" in err and "Traceback" not in err
     assert not (tmp_path / "p.ngc").exists()
@@ -239,7 +239,7 @@ def test_program_reproduces_the_live_campaign_touch_for_touch(tmp_path):
     log = read_probe_log(tmp_path / "log.csv")
     machine = scene()
     pos, rot, touches, rots = np.full(3, np.nan), np.zeros(3), [], []
-    for ln in part_program(plan, settings()).splitlines():
+    for ln in part_program(plan, settings(), axes="XYZAC").splitlines():
         w = dict((a, float(v)) for a, v in WORD.findall(ln) if a in "XYZABC")
         if ln.startswith("G1 "):
             for i, a in enumerate("XYZ"):
@@ -267,11 +267,11 @@ def test_safe_z_below_an_approach_start_is_refused(tmp_path, capsys):
         z = steps[top].start_mm[2]
         low = ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=z - 0.5)
         with pytest.raises(PlanError, match=rf"row {steps[top].row} .*above the safe Z {z - 0.5:g} mm"):
-            part_program(plan, low)
+            part_program(plan, low, axes="XYZAC")
         with pytest.raises(PlanError, match=r"above the safe Z"):
             run_campaign(VirtualBackend(scene()), plan, tmp_path / "log.csv", low)
         assert not (tmp_path / "log.csv").exists()
-        part_program(plan, ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=z))   # at the start's height: allowed
+        part_program(plan, ProbeSettings(limits_mm=LIMITS_MM, safe_z_mm=z), axes="XYZAC")   # at the start's height
     p = write_probe_log(tmp_path / "plan.csv", plan)
     capsys.readouterr()
     assert main(["machine", "program", "--plan", str(p), "--out", str(tmp_path / "p.ngc"), "--limits-mm", LIMITS,

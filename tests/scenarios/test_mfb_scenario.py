@@ -11,7 +11,7 @@ from core.exceptions import PlanError
 from core.units import MM
 
 
-def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path):
+def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path, capsys):
     """--comp writes LinuxCNC files and vmt-comp/1; --apply-comp applies them to the
     virtual machine (LinuxCNC's per-joint compensation as its motion controller
     does it, and a volumetric controller with the 21 tables), runs a new campaign
@@ -30,6 +30,12 @@ def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path):
     comp = tmp_path / "comp"
     assert main(["scenario", "mfb-3axis", "--json", str(out), "--seed", "2", "--mc", "0", "--comp", str(comp),
                  "--apply-comp", str(comp)]) == 0
+    said = capsys.readouterr().out
+    # what a LinuxCNC user must know of the files (review32a F2, F4): they replace BACKLASH and an earlier table,
+    # and are right on one line each, X's and Y's outside this plan's node box (Z readings 60..360 mm)
+    assert "note: the .comp files replace each joint's BACKLASH and any earlier COMP_FILE" in said
+    assert ("X.comp on Y = Z = 0 outside the node box (Z readings 60..360 mm); Y.comp on X = Z = 0 outside the "
+            "node box (Z readings 60..360 mm); Z.comp on X = Y = 0;") in said
     d = json.loads(out.read_text())
     for k in ("placements", "measurements", "touches", "errors", "max_dev_um", "max_dev_urad", "closed_loop"):
         assert k in d
