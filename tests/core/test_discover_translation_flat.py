@@ -53,8 +53,8 @@ def test_a_translation_keeps_the_flat_smooths_penalty_and_workpiece(tmp_path, se
     for (dx, dy), (c2, conf2, sm2, base2, ext2) in zip(SHIFTS[1:], ans[1:]):
         assert (c2, conf2) == (cause, conf), (dx, dy)
         assert sm2["penalty"] == pytest.approx(sm["penalty"], rel=1e-12), (dx, dy)
-        # the translated coordinates round at ~1e-13 mm (1e-10 um): 1e-6 um is 1e4 times that and 1e5 times below
-        # the 10-260 um the penalty moved the workpiece by before
+        # the translated coordinates round at ~1e-13 mm (1e-10 um; measured 1.4e-9 um at most over review32c's 43
+        # logs): 1e-6 um is far above that and far below the 18.4 um the penalty moved this workpiece by before
         for k in ext:
             assert base2[k] == pytest.approx(base[k], abs=1e-6), (dx, dy, k)
             assert ext2[k] == pytest.approx(ext[k], abs=1e-6), (dx, dy, k)
@@ -62,3 +62,22 @@ def test_a_translation_keeps_the_flat_smooths_penalty_and_workpiece(tmp_path, se
     # taken: the held-out set-ups cannot tell the penalties apart
     assert sm["penalty_cv_spread"] < 1e-9
     assert sm["penalty"] == pytest.approx(100.0)
+
+
+def test_a_flat_smooth_refused_as_an_extension_when_asked(tmp_path, monkeypatch):
+    """``UNNAMED_SMOOTH_FLAT_REFUSED`` (off): the smooth on a flat curve is reported, not adopted; the extended
+    workpiece is the baseline's."""
+    import core.discover as D
+    monkeypatch.setattr(D, "UNNAMED_SMOOTH_FLAT_REFUSED", True)
+    text, _ = campaign(20000, 6.30895275826131)
+    p = tmp_path / "clamp_relax.csv"
+    p.write_text(text)
+    log = read_probe_log(str(p))
+    t = from_log(log)
+    r = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    sm = r["findings"][0]["evidence"]["smooth"]
+    assert r["cause"] == "unexplained" and sm["covariate"] == "feature"
+    assert sm["adopted"] is False and sm["penalty_not_identified"] is True and sm["penalty_cv_spread"] < 1e-9
+    for w in r["workpiece"]:
+        assert w["extended_um"] == pytest.approx(w["baseline_um"], abs=1e-9)
+
