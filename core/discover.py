@@ -6978,10 +6978,10 @@ def _penalties_rechosen(terms, folds, y, rows) -> list:
             Pf = P.copy()
             Pf[o:o + k, o:o + k] = f * scale * np.eye(k)
             cvs.append(folds.mse(y[rows], E, Pf))
-        best = (None, float(PENALTY_GRID[_penalty_pick(cvs)]))
-        if best[1] != float(tm.evidence["penalty"]):
-            ev = {**tm.evidence, "penalty": best[1], "penalty_at_adoption": float(tm.evidence["penalty"])}
-            out[i] = dataclasses.replace(tm, penalty=best[1] * scale * np.eye(k), evidence=ev)
+        f = float(PENALTY_GRID[_penalty_pick(cvs)])
+        if f != float(tm.evidence["penalty"]):
+            ev = {**tm.evidence, "penalty": f, "penalty_at_adoption": float(tm.evidence["penalty"])}
+            out[i] = dataclasses.replace(tm, penalty=f * scale * np.eye(k), evidence=ev)
     return out
 
 
