@@ -244,6 +244,12 @@ of gen_a probe_lobing 302 gains ``log10_odds_fixed`` and ``log10_odds_most``
 and 10.13); no decision moved (the demo was ambiguous by ``p_turned`` 0.015,
 302 by its other reasons), every other leaf as stored (/work/team/s27/refresh.py
 with those two keys' paths alone).
+
+Refreshed for the ridge penalty of a tie (session 32, ``core.discover.PENALTY_TIE_RTOL``): the evidence of an unnamed
+smooth and of a penalised cause gains ``penalty_cv_spread`` (the held-out curve's relative spread over the grid:
+gen_a thermal_bending 604 0.141, knock 1 0.149, nonrigid 2's field 11.4, gen_b fixture_slip 500 8.00, 301 57.9,
+stylus_pickup 501 42.5: none flat, so no penalty moved); every other leaf as stored (checked equal with the key
+stripped, then the key alone added).
 """
 
 from __future__ import annotations
