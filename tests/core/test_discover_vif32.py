@@ -32,8 +32,9 @@ def _report_8907():
 
 
 def test_rules_as_shipped():
-    """HEDGED_SHIFT_CARRIED on (``inflated``, session 32); VIF_WORST_REFUSED and VIF_DROP_BEYOND_MAX off."""
-    assert D.HEDGED_SHIFT_CARRIED == "inflated"
+    """HEDGED_SHIFT_CARRIED on (``inflated`` by vif32, ``inflated_any`` by the lead, session 32); VIF_WORST_REFUSED and
+    VIF_DROP_BEYOND_MAX off."""
+    assert D.HEDGED_SHIFT_CARRIED == "inflated_any"
     assert D.VIF_WORST_REFUSED is False and D.VIF_DROP_BEYOND_MAX is False
 
 
@@ -49,6 +50,29 @@ def test_8907_hedged_inflated_shift_carried(monkeypatch):
         ("unexplained", True, ("unexplained", "part_change")), o1
     assert o1.wp_ext_um == o0.wp_ext_um and o1.wp_base_um == o0.wp_base_um  # the estimate does not move
     assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0  # without the rule: the session 31 miss
+    assert o1.wp_ext_um <= o1.wp_base_um + o1.wp_u95_um, o1
+
+
+@pytest.mark.slow
+def test_gen_b_9309_confident_inflated_shift_carried(monkeypatch):
+    """Session 32's blind check (read at the session's start, engine fed5c36): gen_b signal_latency 9309 reads
+    ``unexplained`` (right: out of the catalogue) beside a CONFIDENT part_change of the slot's two walls (+16.3 and
+    -12.3 um +- 7 um) whose form has a direction beyond vif_max: the extended workpiece 4.80 um from the truth against
+    baseline 0.22 + U95 2.22. ``"inflated"`` judges hedged causes only and leaves it; ``"inflated_any"`` carries the
+    confident term's shift too (U95 5.19), name, findings and estimate unchanged."""
+    from scenarios.blind import gen_b
+
+    def run():
+        return blind_outcome(gen_b, "signal_latency", 9309, generator="gen_b")
+
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated")
+    o0 = run()
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated_any")
+    o1 = run()
+    assert (o1.cause, o1.confident, o1.findings) == (o0.cause, o0.confident, o0.findings) == \
+        ("unexplained", True, ("unexplained", "part_change")), o1
+    assert o1.wp_ext_um == o0.wp_ext_um and o1.wp_base_um == o0.wp_base_um  # the estimate does not move
+    assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0  # the blind miss with vif32's mode
     assert o1.wp_ext_um <= o1.wp_base_um + o1.wp_u95_um, o1
 
 
