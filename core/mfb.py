@@ -645,11 +645,16 @@ def align_on_cmm(O_R, z_R, *, roll: bool = True) -> np.ndarray:
 
 def step_gauge_u_m(L_m) -> np.ndarray:
     """Standard uncertainty of the step gauge's calibrated distance L from its reference face, m: the
-    paper's step gauge, U(k=2) = 0.3 um + 1.5e-6 L (Viprey 2016), halved. The distance's, not a
-    face's: the reference face (L = 0, at O_1) has none of its own to add to the others'. The one
-    formula of :func:`reversal_calibration`'s default and of the simulated step gauge
+    paper's step gauge, U(k=2) = 0.3 um + 1.5e-6 L (Viprey 2016), halved, for every face L > 0. The
+    distance's, not a face's: the reference face itself (L = 0, at O_1) is at distance 0 from itself by
+    definition and gets u = 0 (session 32, refface32; until then 0.15 um, the constant taken at L = 0:
+    an independent error stated at the one point defined as error-free, which the identification added
+    to every difference from O_1, the MFB's EXX U95 up to 25 % wider at a node). The 0.3 um constant
+    is a per-distance term (the probing of both faces, the gauge's set-up): it stays at every other
+    face. The one formula of :func:`reversal_calibration`'s default and of the simulated step gauge
     (scenarios.mfb.reversal_on_cmm)."""
-    return 0.5 * (0.3e-6 + 1.5e-6 * np.asarray(L_m, float))
+    L = np.asarray(L_m, float)
+    return np.where(L == 0.0, 0.0, 0.5 * (0.3e-6 + 1.5e-6 * L))
 
 
 @dataclass(frozen=True)
@@ -692,7 +697,7 @@ def reversal_calibration(M_norm, M_rev, E_XX_cmm_m=None, *, pitch_m: float = MFB
         against a step gauge; default 0.
     u_step_gauge_m : (N,) float, optional
         Standard uncertainty of ``E_XX_cmm_m`` (default: the paper's step
-        gauge at L = (i-1) x pitch from O_1, :func:`step_gauge_u_m`).
+        gauge at L = (i-1) x pitch from O_1, :func:`step_gauge_u_m`: 0 at O_1, its reference face).
     declared_norm, declared_rev : str
         Declared orientations of the two set-ups; :class:`OrientationError`
         names the shifted holes when a set-up is not what it is declared.

@@ -2266,7 +2266,7 @@ def reversal_on_cmm(*, repeats: int = 5, seed: int = 1, noise_um: float = 0.05, 
     # tests31: drawing one there too put it into every hole's Exx, as compared from hole 1, beyond the U95 of the
     # distance's certificate: seeds 2-25, holes 2-12, 21/264 outside, RMS error/U95 0.566; without it 16/264, 0.513)
     sg_err = rng.standard_normal(12) * mfb.step_gauge_u_m(np.arange(12) * A.MFB_PITCH_M)
-    sg_err[0] = 0.0   # (its u, step_gauge_u_m(0) = 0.15 um, is still stated at O_1: README "Bar calibration file")
+    sg_err[0] = 0.0   # (its u, step_gauge_u_m(0), is 0 since session 32: the draw there is 0 * N(0, 1), maybe -0.0)
     exx_sg = exx - exx[0] + sg_err
     cal = mfb.reversal_calibration(np.array(M["NR"]), np.array(M["R"]), exx_sg)
     truth = np.asarray(art.info["E_MFB_m"], float)

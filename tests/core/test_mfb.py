@@ -114,7 +114,8 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     - hole 7's Eyx and hole 9's Ezx (no step gauge): u = u_A, nu = r - 1 = 2, k = t(0.975, 2) = 4.30265,
       U95 = 0.248414 um.
     - the other holes' Exx (no scatter): u = u_sg = 0.5 (0.3 + 1.5 x) um, k = 2 (the code's choice for an
-      infinite nu: no type A); their Eyx, Ezx: 0.
+      infinite nu: no type A), hole 1's 0 (the gauge's reference face, x = 0: session 32, refface32); their
+      Eyx, Ezx: 0.
     Tolerance rel 1e-9: the readings carry x up to 0.55 m, whose rounding (1e-16 m) is 1e-9 of the 0.1 um
     scatter; dropping / sqrt(r) moves u_A by 1.7x, Welch-Satterthwaite's r - 1 -> r + 5 moves k by 6e-4 at hole 5
     and 46 % at hole 7, a step gauge u doubled moves hole 5's u by 1.9x."""
@@ -132,6 +133,7 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     uA = 0.1e-6 / np.sqrt(3)
     x = np.arange(12) * 0.050
     u_sg = 0.5 * (0.3e-6 + 1.5e-6 * x)
+    u_sg[0] = 0.0  # the reference face: at distance 0 from itself by definition
     assert u_sg[4] == pytest.approx(0.3e-6, rel=1e-12)
     u5 = np.sqrt(uA ** 2 + 0.09e-12)
     assert u5 == pytest.approx(0.305505e-6, rel=1e-6)
@@ -159,6 +161,30 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     assert mfb.step_gauge_u_m(0.2) == pytest.approx(0.3e-6, rel=1e-12)  # the one formula, U(k=2) 0.6 um at 0.2 m
 
 
+def test_step_gauge_reference_face_has_no_uncertainty_of_its_own():
+    """Session 32 (refface32, review32d F5): the step gauge's certificate, U(k=2) = 0.3 um + 1.5e-6 L (Viprey
+    2016, halved), is of a calibrated distance from its reference face, which sits at O_1: O_1 is at distance 0
+    from itself by definition, so its Exx (0 exactly: the CMM reads O_1 at its origin) carries no step-gauge
+    u. Until session 32 the default gave it 0.15 um (the constant at L = 0), which the MFB identification added
+    to every difference from O_1 (EXX's U95 up to 25 % wider at a node). Known answers: u = 0 at L = 0 only,
+    every other face's u the certificate's (0.5 (0.3 + 1.5 L) um, by hand: the 0.3 um constant is per distance,
+    it stays); a calibration without scatter at O_1 (readings without noise) states u = U95 = 0 there and the
+    others' unchanged. Tolerance: exact 0 at O_1 (a definition, not a figure); rel 1e-12 elsewhere (one
+    formula, its rounding)."""
+    x = np.arange(12) * MFB.pitch_m
+    u = mfb.step_gauge_u_m(x)
+    assert u[0] == 0.0
+    np.testing.assert_allclose(u[1:], 0.5 * (0.3e-6 + 1.5e-6 * x[1:]), rtol=1e-12, atol=0)
+    assert mfb.step_gauge_u_m(1e-9) == pytest.approx(0.15e-6, rel=1e-6)  # a face 1 nm away: the constant
+    E0 = np.zeros((12, 3))
+    NR, cmm = _cmm(E0, np.random.default_rng(0), 3, False, sigma=0.0)
+    R, _ = _cmm(E0, np.random.default_rng(0), 3, True, sigma=0.0)
+    cal = mfb.reversal_calibration(NR, R, E_XX_cmm_m=cmm[:, 0])
+    assert cal.E_m[0, 0] == 0.0 and cal.u_m[0, 0] == 0.0 and cal.U95_m[0, 0] == 0.0
+    np.testing.assert_allclose(cal.u_m[1:, 0], 0.5 * (0.3e-6 + 1.5e-6 * x[1:]), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(cal.U95_m[1:, 0], 2 * cal.u_m[1:, 0], rtol=1e-12, atol=0)
+
+
 #: Draws of the reversal's coverage test (independent of each other and of every other test's).
 REVERSAL_COVERAGE_DRAWS = 200
 
@@ -181,6 +207,7 @@ def test_reversal_u95_covers_95_percent_neither_less_nor_more():
     E = mfb_default_deviations()
     x = np.arange(12) * MFB.pitch_m
     u_sg = 0.5 * (0.3e-6 + 1.5e-6 * x)  # the paper's step gauge, U(k=2) 0.3 um + 1.5 um/m, by hand
+    u_sg[0] = 0.0  # its reference face at O_1: no distance, no error (session 32, refface32)
     inside = np.zeros(3)
     for _ in range(REVERSAL_COVERAGE_DRAWS):
         NR, cmm = _cmm(E, rng, 5, False, sigma=1e-6)

@@ -658,6 +658,11 @@ def test_reversal_calibration_file_round_trip_and_cli(tmp_path, capsys):
     assert np.allclose(cal.E_m, ref.E_m, rtol=1e-12, atol=0) and np.allclose(cal.u_m, ref.u_m, rtol=1e-12, atol=0)
     assert np.allclose(cal.U95_m, ref.U95_m, rtol=1e-12, atol=0) and cal.n_repeats == 5
     assert np.allclose(true_m, mfb_default_deviations(), rtol=1e-12, atol=0)
+    # the first point, the step gauge's reference face: Exx 0 by definition and no u of its own (session 32,
+    # refface32, review32d F5: the file stated 0.15 um there); the next point's u the certificate's, by hand
+    doc = json.loads(f.read_text())
+    assert doc["E_um"][0] == [0.0, 0.0, 0.0] and doc["u_um"][0][0] == 0.0 and doc["U95_um"][0][0] == 0.0
+    assert doc["u_um"][1][0] >= 0.5 * (0.3 + 1.5 * 0.050) - 1e-12
     assert main(["scenario", "pin-circle", "--bar-calibration", str(f)]) == 2
 
 
