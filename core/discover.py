@@ -9329,16 +9329,19 @@ def _doubt_outliers_under_refused_bump(findings: list, outliers: np.ndarray, ref
     lies where one of ``refused_bumps`` (the search's bumps refused by the all-touch support count alone: ``info``,
     ``support_units``, ``reach`` the rows its column moves) reaches (:data:`OUTLIERS_UNDER_SUPPORT_REFUSED_BUMP`)."""
     fo = next((f for f in findings if f.cause == causes_mod.OUTLIER), None)
-    if fo is None or fo.evidence.get("confidence") != "named":
+    # (a finding hedged by :data:`OUTLIER_STRONG_EVENTS` alone is still offered the bump: the more specific reading)
+    weak = (fo.evidence.get("strong_events") or {}).get("strong_events", 2) < 2 if fo is not None else False
+    if fo is None or (fo.evidence.get("confidence") != "named" and not weak):
         return
     under = [b for b in refused_bumps if np.all(np.isin(outliers, b["reach"]))]
     if not under:
         return
     b = under[-1]  # (the latest search's)
     i = b["info"]
+    before = fo.evidence.get("confidence_reason") if fo.evidence.get("confidence") == "ambiguous" else None
     fo.evidence["confidence"] = "ambiguous"
     fo.evidence["ambiguous_with"] = sorted(set(fo.evidence.get("ambiguous_with", [])) | {"local_scale_defect"})
-    fo.evidence["confidence_reason"] = (
+    fo.evidence["confidence_reason"] = ("" if not before else before + "; ") + (
         f"every outlier lies under a local scale defect's bump ({i['axis']} at {i['centre_m'] * 1e3:.4g} mm, "
         f"half-width {i['half_width_m'] * 1e3:.3g} mm) that passed every test of adoption but the support count "
         f"({_positions_text(b['support_units'])} effective positions, at least {MIN_SUPPORT:g}): they may be that "

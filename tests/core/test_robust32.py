@@ -131,3 +131,18 @@ def test_a_noise_tail_and_a_bumps_touch_are_no_confident_outlier(monkeypatch):
     monkeypatch.setattr(D, "OUTLIER_STRONG_EVENTS", False)
     r0 = _report(DATA / "t4_local_scale_defect_20014.csv")
     assert r0["cause"] == "outlier" and r0["findings"][0]["evidence"]["confidence"] == "named"
+
+
+@pytest.mark.slow
+def test_gen_b_local_scale_defect_8306_hedged_by_the_strong_events_alone(monkeypatch):
+    """Spent blind gen_b local_scale_defect 8306 (session 31's confident `outlier`, hedged since by
+    ``OUTLIERS_UNDER_SUPPORT_REFUSED_BUMP``): with that rule off, ``OUTLIER_STRONG_EVENTS`` alone hedges it (the
+    mechanism of review32c F5 on a project generator with Gaussian noise: a bump's touches as the events); with both
+    off it is confident again (tests/core/test_discover_outliers_hedged.py)."""
+    import core.discover as D
+    from scenarios import hidden
+    from scenarios.blind import gen_b
+
+    monkeypatch.setattr(D, "OUTLIERS_UNDER_SUPPORT_REFUSED_BUMP", False)
+    o = hidden.blind_outcome(gen_b, "local_scale_defect", 8306, generator="gen_b")
+    assert o.cause == "outlier" and not o.confident, o
