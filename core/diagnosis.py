@@ -1559,8 +1559,48 @@ def _basis_within(T: np.ndarray, Tc: np.ndarray) -> np.ndarray:
     return orth(Tc[:, big]) if big.any() else np.zeros((len(T), 0))
 
 
+def separated_groups(key: np.ndarray, t_s: np.ndarray, setup: np.ndarray,
+                     fraction: float | None = None) -> np.ndarray:
+    """The keys (sorted) of the repeat groups (``key >= 0``) whose touches something separates: some two of its
+    touches consecutive in time (within one ``setup``) have another touch of that set-up between them, or are more
+    than ``fraction`` (default :data:`CLOSE_PAIR_FRACTION`) of the set-up's time span apart (the short-term scale of
+    :func:`close_pair_scatter`), or lie
+    in different set-ups. Only such a group can straddle a step (a slip, a knock) within its set-up: two touches one
+    right after the other, with nothing between them and seconds apart, hold no event between them that is not
+    noise (review32c F1: a pair 7 s apart, one touch a heavy-tailed noise tail, was set aside as straddling)."""
+    key, t_s, setup = (np.asarray(a) for a in (key, t_s, setup))
+    if not (key.shape == t_s.shape == setup.shape):
+        raise ConfigError("separated_groups: key, t_s and setup must have one entry per row, got "
+                          f"{key.shape}, {t_s.shape}, {setup.shape}")
+    fraction = CLOSE_PAIR_FRACTION if fraction is None else fraction
+    t_s = t_s.astype(float)
+    su, sinv = np.unique(setup, return_inverse=True)
+    sinv = sinv.ravel()
+    lo = np.full(su.size, np.inf)
+    hi = np.full(su.size, -np.inf)
+    np.minimum.at(lo, sinv, t_s)
+    np.maximum.at(hi, sinv, t_s)
+    span = hi - lo
+    ok = np.flatnonzero(key >= 0)
+    order = ok[np.lexsort((t_s[ok], key[ok]))]  # by target, then time
+    a, b = order[:-1], order[1:]
+    same = key[a] == key[b]
+    a, b = a[same], b[same]
+    # touches of the set-up strictly between the two (in time): the set-up's times sorted, counted by bisection
+    between = np.zeros(a.size, dtype=int)
+    for j in range(su.size):
+        m = (sinv[a] == j) & (sinv[b] == j)
+        if m.any():
+            ts = np.sort(t_s[sinv == j])
+            between[m] = (np.searchsorted(ts, t_s[b[m]], side="left")
+                          - np.searchsorted(ts, t_s[a[m]], side="right"))
+    sep = ((sinv[a] != sinv[b]) | (between > 0)
+           | (t_s[b] - t_s[a] > fraction * span[sinv[a]]))
+    return np.unique(key[a[sep]])
+
+
 def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = None,
-                     alpha: float = 0.01) -> np.ndarray:
+                     alpha: float = 0.01, eligible: np.ndarray | None = None) -> np.ndarray:
     """Replicate groups whose scatter is no probe's: the keys (sorted) of groups that scatter beyond the others.
 
     Repeats of one target touched before and after a step within their
@@ -1586,15 +1626,20 @@ def straddled_groups(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None = 
     ``dss_g`` is the deleted-group formula: ``e_g' (I - J/n_g - B_g
     B_g')^+ e_g`` with ``e`` the scatter's residuals and ``B`` the basis of
     the trend's within-group deviations, ``ddof_g`` that matrix's rank.
+
+    ``eligible`` (keys), optional: only these groups may be set aside (the
+    others stay in the pool as pure error, and the Bonferroni factor counts
+    the eligible groups still in): :func:`separated_groups`, the groups
+    whose touches something separates (session 32, review32c F1).
     """
     key = np.asarray(key)
-    steps, max_out = _straddled_steps(key, y, trend)
+    steps, max_out = _straddled_steps(key, y, trend, eligible)
     sig = [i for i, (pb, _) in enumerate(steps) if pb * max_out < alpha]
     out = [kk for _, kk in steps[:sig[-1] + 1]] if sig else []
     return np.sort(np.asarray(out, dtype=key.dtype))
 
 
-def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None):
+def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None, eligible=None):
     """:func:`straddled_groups`' steps, ``[(p * groups still in, key), ...]``, and ``m`` (the most steps)."""
     ok = np.flatnonzero(key >= 0)
     if ok.size == 0:
@@ -1615,6 +1660,7 @@ def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None):
     rows = np.arange(ok.size)  # the rows kept (of ok's)
     steps: list = []  # (Bonferroni p, key) of the most outlying group, then of the rest's, ...
     max_out = min(max(int(np.sum(cnt > 1)) // 2, 1), STRADDLED_MAX_STEPS)
+    elig = np.ones(len(k), dtype=bool) if eligible is None else np.isin(k, np.asarray(eligible))
     while True:
         multi = cnt > 1
         if multi.sum() < 3:
@@ -1650,17 +1696,19 @@ def _straddled_steps(key: np.ndarray, y: np.ndarray, trend: np.ndarray | None):
             # (special.fdtrc: stats.f.sf's own function without its argument handling, 40 -> 1.2 us a call;
             # F = inf -> 0 and F = 0 -> 1 as there)
             p_g[gs] = np.where(good, special.fdtrc(np.maximum(ddof, 1), np.maximum(dof - ddof, 1), F), 1.0)
+        if eligible is not None:
+            p_g[~elig] = 1.0  # (a group nothing separates stays pure error)
         g = int(np.argmin(p_g))
         if not p_g[g] < 1.0:
             break
-        steps.append((float(p_g[g]) * int(multi.sum()), k[g]))
+        steps.append((float(p_g[g]) * int((multi if eligible is None else multi & elig).sum()), k[g]))
         if len(steps) >= max_out:
             break
         # group g out: np.unique of the rows left gives the same keys less k[g], the later groups' index one less
         stay = inv != g
         rows, inv = rows[stay], inv[stay]
         inv[inv > g] -= 1
-        k, cnt = np.delete(k, g), np.delete(cnt, g)
+        k, cnt, elig = np.delete(k, g), np.delete(cnt, g), np.delete(elig, g)
     return steps, max_out
 
 
