@@ -16,12 +16,12 @@ from core import discover as disc
 from core.baseline import extra_columns
 from core.touches import from_log
 from scenarios.blind import gen_c
+from tests.discover_helpers import discovered
 
 
 def _report(effect, seed, machine="affine"):
     log, _ = gen_c.generate(effect, seed, noise=False, machine=machine)
-    t = from_log(log)
-    d = disc.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     return d, d.to_report()
 
 
