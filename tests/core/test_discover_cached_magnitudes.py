@@ -10,11 +10,10 @@ made afresh in the final model (the cache never hit).
 import pytest
 
 import core.discover as D
+from tests.discover_helpers import discovered
 
 
 def _run(monkeypatch, no_cache):
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     orig = D._penalties_rechosen
@@ -31,8 +30,7 @@ def _run(monkeypatch, no_cache):
     if no_cache:
         monkeypatch.setattr(D, "_pen_key", lambda terms: object())  # never equal: every magnitude made afresh
     log, _ = gen_a.generate("nonrigid", 1013)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     monkeypatch.undo()
     return rep
 

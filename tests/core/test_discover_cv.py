@@ -32,6 +32,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from tests.discover_helpers import discovered
 
 _spec = importlib.util.spec_from_file_location(
     "discover_identity_make", pathlib.Path(__file__).parent / "data" / "discover_identity" / "make.py")
@@ -150,14 +151,10 @@ def test_no_held_out_gap_when_a_set_up_alone_covers_a_stretch(gen, seed):
     model, where leaving one set-up out asks the others to predict the stretch of the error map it covers mostly
     alone. The former folds truncated those directions (held-out gap ratio 22 against 6.0 expected on gen_a 902,
     6.7 against 3.7 on gen_b 904: `unexplained`). Now the gap is pure noise's and the answer `none`."""
-    from core.baseline import extra_columns
-    from core.discover import discover
-    from core.touches import from_log
     from scenarios.blind import gen_a, gen_b
 
     log = {"gen_a": gen_a, "gen_b": gen_b}[gen].generate("none", seed)[0]
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     gap = rep["noise_um"]["cv_gap"]
     assert rep["cause"] == "none" and not rep["structure"]["baseline"]["cv_gap"], (rep["cause"], gap)
     assert gap["ratio"] < 1.5 * gap["expected_ratio"] and gap["p_value"] > 0.01, gap
@@ -472,17 +469,15 @@ def test_noise_from_short_term_pairs_when_the_repeats_hold_a_drift(monkeypatch):
     from scenarios.blind import gen_a
 
     from core import discover as D
-    from core.baseline import extra_columns
-    from core.discover import discover
     from core.touches import from_log
 
     log, tr = gen_a.generate("thermal_drift", 1204)
     t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert "straddled_groups" not in rep["noise_um"]["repeats"], rep["noise_um"]
     rep_on = rep
     monkeypatch.setattr(D, "REPEATS_STRADDLED", False)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["noise_um"] == rep_on["noise_um"] and rep["cause"] == rep_on["cause"]
     nz = rep["noise_um"]
     # 5 pairs: sigma's relative standard deviation ~ 1 / sqrt(10) = 0.32; within 3 of them of the truth
@@ -492,8 +487,7 @@ def test_noise_from_short_term_pairs_when_the_repeats_hold_a_drift(monkeypatch):
     monkeypatch.setattr(D, "REPEATS_STRADDLED", True)  # (effect-free: the default engine's repeats stay the noise)
     for seed in (1200, 1201):
         log, tr = gen_a.generate("none", seed)
-        t = from_log(log)
-        nz = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()["noise_um"]
+        nz = discovered(log).to_report()["noise_um"]
         assert nz["method"] == "repeats" and not nz["short_term"]["used"], nz
 
 
@@ -798,8 +792,6 @@ def test_cv_gap_in_blocks_of_draws_equals_all_at_once(monkeypatch):
     1e-12 relative, not bit for bit, since the BLAS products' order of summation depends on the block's width
     (measured up to 9.5e-14)."""
     from core import discover as D
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     orig, cvg, draws, got, seen = D._cv_gap, D.cv_gap, D._null_draws, [], []
     blocks = []
@@ -837,8 +829,7 @@ def test_cv_gap_in_blocks_of_draws_equals_all_at_once(monkeypatch):
     monkeypatch.setattr(D, "cv_gap", record)
     monkeypatch.setattr(D, "_cv_gap", both)
     log = make.read_log("demo")
-    t = from_log(log)
-    D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    discovered(log)
     assert seen == [False, True], seen  # the baseline's gap and the named cause's
 
 

@@ -31,6 +31,7 @@ from core.discover import (MIN_SUPPORT, Settings, Term, _State, _demotion_reason
                            _support, discover)
 from core.lsq import orth_of
 import discover_synth as S
+from tests.discover_helpers import discovered
 
 
 @pytest.mark.parametrize("seed", [8, 42, 135, 140])
@@ -343,7 +344,6 @@ def _gen_b_defect_1047(chips_um: float = 0.0):
     interface only; with ``chips_um``, a chip of that height on one touch in each of two set-ups, where the
     defect does not reach (its effect below 0.01 um, 40 mm or more from its centre along X: beyond the widest
     scanned bump, 0.4 grid steps of 25 mm). Returns (report, truth, chip rows)."""
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_b
 
@@ -359,7 +359,7 @@ def _gen_b_defect_1047(chips_um: float = 0.0):
         for r in chips:
             i = np.flatnonzero(t.row == r)[0]
             t.p_R[i] += t.n_R[i] * chips_um * 1e-6
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     return rep, truth, chips
 
 
@@ -390,13 +390,10 @@ def test_a_narrow_bump_in_three_set_ups_is_not_read_as_outliers():
     sigma of this campaign's 0.46 um noise: the generator's own effect on it, not dust; here row 26, the peak,
     -8.0 um). Fails on main 69a6324 (`outlier`). With the finer half-widths (core.causes.DEFECT_WIDTHS, session
     14) none of the bump's touches is set aside at all, so none is put back."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_b
 
     log, truth = gen_b.generate("local_scale_defect", 1313)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     ev = rep["findings"][0]["evidence"]
     assert rep["cause"] in truth.acceptable_causes, rep["cause"]
     assert ev["confidence"] == "named", ev
@@ -461,13 +458,9 @@ def test_chips_a_cause_on_every_row_reaches_stay_outliers(gen, seed):
     put-back whose cause is dropped is undone (the touches judged again)."""
     import importlib
 
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
     mod = importlib.import_module(f"scenarios.blind.{gen}")
     log, truth = mod.generate("outlier", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["cause"] == "outlier", rep["cause"]
     assert rep["findings"][0]["evidence"]["confidence"] == "named", rep["findings"][0]["evidence"]
     assert rep["outlier_rows"] == sorted(int(r) for r in truth.outlier_rows), (rep["outlier_rows"], truth.outlier_rows)
@@ -483,13 +476,10 @@ def test_a_narrow_defect_on_a_coarse_grid_is_named_where_the_generator_put_it(se
     the positions' resolution (core.causes.DEFECT_WIDTHS) the defect is named first, on the generator's axis;
     its centre within a quarter of the true half-width (the scan's step between centres), its half-width and
     peak amplitude within their U95 of the generator's."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, truth = gen_a.generate("local_scale_defect", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["baseline"]["grid_step_mm"] == grid_mm
     f = rep["findings"][0]
     assert f["cause"] == "local_scale_defect", (f["cause"], rep["rejected"])
@@ -530,12 +520,8 @@ def test_defect_widths_stop_at_the_positions_resolution():
 def _blind_report_once(gen: str, effect: str, seed: int) -> dict:
     import importlib
 
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
     log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
-    t = from_log(log)
-    return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return discovered(log).to_report()
 
 
 def _blind_report(gen: str, effect: str, seed: int) -> dict:

@@ -20,6 +20,7 @@ import pytest
 import core.discover as D
 from scenarios import hidden
 from scenarios.blind import gen_a
+from tests.discover_helpers import discovered
 
 
 def _toy(n_targets=12, per=4, seed=0):
@@ -141,11 +142,8 @@ def test_sim_outlier_4047_fails_without_the_rule(monkeypatch):
 def test_gen_a_outlier_1083_says_the_design_cannot_tell():
     """gen_a outlier 1083 (a tuning seed): a chip (row 3) read as a 1.4 mm bump that reaches no other touch where
     it would move it detectably (0.25 sigma expected): the hedge stays, in words that say why."""
-    from core.touches import from_log
-    from core.baseline import extra_columns
     log, _ = gen_a.generate("outlier", 1083)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "local_scale_defect" and f["evidence"]["confidence"] == "ambiguous"
     assert f["evidence"]["beyond_one_place"]["verdict"] == "cannot tell"

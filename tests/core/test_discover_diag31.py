@@ -26,6 +26,7 @@ import pytest
 import core.discover as D
 from scenarios.blind import gen_a, gen_c
 from scenarios.hidden import blind_outcome
+from tests.discover_helpers import discovered
 
 
 def _finding(cause):
@@ -110,12 +111,9 @@ def test_gen_a_thermal_bending_8907_the_inflated_direction_carries_it(monkeypatc
 @pytest.mark.slow
 def test_gen_c_outlier_6106_report_says_which_map():
     """The report says the 22 mm map was taken and why: the coarse map's reading, and the same outliers alone here."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     log, _ = gen_c.generate("outlier", 6106)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["baseline"]["grid_step_mm"] == 22.0 and rep["outlier_rows"] == [78, 103, 132], rep["baseline"]
     note = [c for c in rep["conventions"] if "the finest identifiable" in c]
     assert len(note) == 1 and "read periodic_axis_error" in note[0], rep["conventions"]

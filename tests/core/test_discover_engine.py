@@ -17,12 +17,13 @@ import pytest
 from core import causes, selfcal
 from core.design import example_cross_pocket
 from core.diagnosis import holm, nested_f, new_basis, orth
-from core.baseline import extra_columns, touch_history
+from core.baseline import touch_history
 from core.discover import Settings, concentration_p, discover, find_outliers
 from core.exceptions import ConfigError, IdentifiabilityError
 from core.touches import from_log
 from core.units import UM
 import discover_synth as S
+from tests.discover_helpers import discovered
 
 CATALOGUE = ["thermal_drift", "c_drift", "temperature_expansion", "periodic_axis_error", "probe_lobing",
              "stylus_bending", "local_scale_defect", "part_change", "reversal", "nonrigid"]
@@ -520,8 +521,7 @@ def test_chips_a_step_could_absorb_are_dust_when_nothing_else_moved():
 
     for seed in (1108, 1109):
         log, truth = gen_a.generate("outlier", seed)
-        t = from_log(log)
-        rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        rep = discovered(log).to_report()
         assert rep["cause"] == "outlier", (seed, rep["cause"])
         assert sorted(rep["outlier_rows"]) == sorted(truth.outlier_rows), (seed, rep["outlier_rows"])
 
@@ -675,8 +675,7 @@ def test_a_knock_whose_every_later_touch_is_an_outlier_is_not_dust():
     from scenarios.blind import gen_a
 
     log, truth = gen_a.generate("knock", 811)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["cause"] in truth.acceptable_causes, rep["cause"]
     assert rep["outlier_rows"] == [], rep["outlier_rows"]
 
@@ -695,8 +694,7 @@ def test_a_cause_rejected_without_its_largest_touches_is_judged_with_them():
 
     for seed in (829, 1003):
         log, truth = gen_b.generate("local_scale_defect", seed)
-        t = from_log(log)
-        rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        rep = discovered(log).to_report()
         assert rep["cause"] in truth.acceptable_causes, (seed, rep["cause"])
         # put back: the touches the defect reaches; any left set aside is one it does not reach (1003: row
         # 151, residual 1.9 um, the defect's true effect there 0.0 um, cut 15 %: not its structure)
@@ -722,7 +720,7 @@ def test_a_chip_beside_a_cause_put_back_stays_an_outlier():
     t = from_log(log)
     i = np.flatnonzero(t.row == 87)[0]
     t.p_R[i] += t.n_R[i] * 5e-6
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["cause"] in truth.acceptable_causes, rep["cause"]
     assert rep["outlier_rows"] == [87], rep["outlier_rows"]
     assert rep["findings"][0]["evidence"].get("outliers_put_back", 0) == 0, rep["findings"][0]["evidence"]
@@ -737,8 +735,7 @@ def test_the_baseline_is_judged_on_the_rows_the_report_keeps():
     from scenarios.blind import gen_b
 
     log, truth = gen_b.generate("outlier", 945)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["cause"] not in ("outlier", "unexplained", None), rep["cause"]
     assert rep["structure"]["baseline"]["present"], rep["structure"]["baseline"]
 

@@ -13,9 +13,8 @@ from __future__ import annotations
 import pytest
 
 import core.discover as D
-from core.baseline import extra_columns
-from core.touches import from_log
 from scenarios.blind import gen_a, gen_b
+from tests.discover_helpers import discovered
 
 
 def _report(monkeypatch, on: bool | None, effect: str, seed: int, gen=gen_b) -> dict:
@@ -23,8 +22,7 @@ def _report(monkeypatch, on: bool | None, effect: str, seed: int, gen=gen_b) -> 
         monkeypatch.setattr(D, "ENTRANT_FORM_HELD_OUT", on)
     log, truth = gen.generate(effect, seed)
     assert effect in truth.acceptable_causes
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return discovered(log).to_report()
 
 
 def test_the_rule_is_on():

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import core.discover as D
-from core.discover import _support_share, discover
+from core.discover import _support_share
+from tests.discover_helpers import discovered
 
 #: the cause the rule serves (books to the workpiece)
 PC = next(c for c in __import__("core.causes", fromlist=["REGISTRY"]).REGISTRY if c.name == "part_change")
@@ -65,14 +66,10 @@ def test_support_share_bad_input(bad):
 
 
 def _gen_a(effect, seed):
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate(effect, seed)
-    t = from_log(log)
-    return tr, (lambda: discover(t, chain=log.meta.get("kinematic_chain"),
-                                 extra=extra_columns(log, t.row)).to_report())
+    return tr, (lambda: discovered(log).to_report())
 
 
 @pytest.mark.parametrize("seed", [1027, 1040])

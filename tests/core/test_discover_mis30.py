@@ -19,6 +19,7 @@ import pytest
 import core.discover as D
 from scenarios import hidden
 from scenarios.blind import gen_a, gen_b
+from tests.discover_helpers import discovered
 
 
 def _state(Q, y):
@@ -177,11 +178,8 @@ def test_gen_a_thermal_bending_8100_fails_without_the_rule(monkeypatch):
 
 @pytest.mark.slow
 def test_gen_b_part_change_8101_bump_on_the_slot_is_hedged_with_part_change():
-    from core.baseline import extra_columns
-    from core.touches import from_log
     log, _ = gen_b.generate("part_change", 8101)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "local_scale_defect" and f["evidence"]["confidence"] == "ambiguous"
     assert f["evidence"]["beyond_one_feature"]["verdict"] == "cannot tell"

@@ -31,6 +31,7 @@ from core.discover import (Settings, Term, _cause_alternatives, _reproduces, _ri
                            discover)
 from core.units import UM
 import discover_synth as S
+from tests.discover_helpers import discovered
 
 MAG = 6e-6  # the effect's scale change over the part, m (20 sigma over the pocket's 0.1 m)
 
@@ -242,12 +243,9 @@ def test_a_cause_refused_as_confounded_that_explains_as_much_makes_the_name_ambi
     test never listed it). What the data see of the lost motion explains as much as the lobes (7.3
     against 7.1 um^2) and the lobes nothing material beyond it: the name is ambiguous, reversal listed."""
     from scenarios.blind import gen_a
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     log, tr = gen_a.generate("reversal", 1457)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert any(r["cause"] == "reversal" and r["reason"].startswith("confounded with")
                for r in rep["rejected"]), rep["rejected"]
     f = rep["findings"][0]

@@ -25,6 +25,7 @@ from core.baseline import planar
 from core.discover import Finding, Places, Settings, _State, _ordered, concentration_p, discover, find_outliers
 from core.lsq import orth_of
 import discover_synth as S
+from tests.discover_helpers import discovered
 
 C6 = (0.0, 50.0, 110.0, 170.0, 230.0, 300.0)
 
@@ -258,19 +259,18 @@ def test_gen_a_part_change_904_outliers_not_confidently_dust(monkeypatch):
     on the changing feature, and no outlier is called dust confidently. With the ring switched off
     (RING_FIT_REL 0: no feature is a ring) the place rule still does its part end to end: the outliers
     are ambiguous, their structure placed on the boss."""
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("part_change", 904)
     t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == tr.params["feature"], rep["findings"]
     assert not any(g["cause"] == "outlier" and g["evidence"].get("confidence") != "ambiguous"
                    for g in rep["findings"]), rep["findings"]
     monkeypatch.setattr(causes, "RING_FIT_REL", 0.0)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and f["evidence"]["confidence"] == "ambiguous", f["evidence"]
     assert f["evidence"]["place_structure"]["feature"] == "boss"
@@ -405,13 +405,10 @@ def test_gen_a_part_change_named_with_the_bow(seed):
     opened to diagnose it) read `none`: its wall's shift alone (p = 0.068) lost to another wall's (0.0029)
     before any wall's bow was tried, so the bow (p = 1e-22) never was (core.discover._grow_layout: every feature's
     layout is grown before the features are compared); it fails on a3ba8ad."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("part_change", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == tr.params["feature"], rep["rejected"]
     bow = [k for k in f["params"] if k.endswith("_bow_um")]
@@ -439,13 +436,10 @@ def test_sim_part_change_3106_the_turn_kept_only_where_it_holds_out():
     held-out error of none: with the turns taken unconditionally part_change's held-out gain fell to
     -0.0135 um^2 and lobing_per_setup was named. The turn is kept only where it is significant beyond the
     shifts AND lowers the held-out mean square: the walls' shifts are named, without turns."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.hidden import hidden_campaign
 
     log, _ = hidden_campaign(("part_change",), 3106)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == "pocket", rep["rejected"]
     assert not any(k.endswith("_turn_um") for k in f["params"]), f["params"]
@@ -456,11 +450,10 @@ def test_gen_b_part_change_1010_named_beside_the_slip():
     closing 0.1 to 1 times its closure from its closed end to its open one, read `unexplained`: the walls
     shifting alone explained less of it than a one-off slip of the part in the first set-up (the plainer
     explanation). With the walls' turns the change is named, and its turns are reported."""
-    from core.baseline import extra_columns
 
     log, tr, t, _ = _gen_b_baseline("part_change", 1010)
     assert "part_change" in tr.acceptable_causes
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == "slot", rep["rejected"]
     assert {"wall135deg_turn_um", "wall315deg_turn_um"} <= set(f["params"])
@@ -478,14 +471,11 @@ def test_a_cause_confounded_in_a_later_round_names_the_model(monkeypatch):
     ``_plainer_one_explanation``; test_plainer_of_one_explanation_leads below): the round's choice before
     that rule is restored so that the stage this test is about, the lobes adopted first, is kept."""
     import core.discover as D
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     monkeypatch.setattr(D, "_plainer_one_explanation", lambda best, *a: best)
     log, _ = gen_a.generate("reversal", 1208)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     why = [r["reason"] for r in rep["rejected"] if r["cause"] == "reversal"]
     assert why and why[0].startswith("confounded with the baseline + probe_lobing (best variance inflation "), why
     assert rep["findings"][0]["cause"] == "probe_lobing" and "reversal" in rep["findings"][0]["evidence"][
@@ -547,13 +537,10 @@ def test_gen_a_reseat_hysteresis_876_outliers_not_confidently_dust():
     below the overall rate 0.01 (main fails: confident, p = 0.069). Since session 24 the outliers, whose centred
     turn is below alpha_family too, hand the report's lead to ``unexplained`` (OUTLIERS_TURNED_UNEXPLAINED,
     tests/core/test_discover_turned_lead.py); the outlier finding follows it, as tested here."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate("reseat_hysteresis", 876)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["cause"] == "unexplained", rep["cause"]
     f = next(f for f in rep["findings"] if f["cause"] == "outlier")
     assert f["evidence"]["confidence"] == "ambiguous", f["evidence"]
@@ -597,12 +584,8 @@ def test_centred_turn_p_pinned_on_a_campaign(gen, effect, seed, p, confidence):
     turns from that row's approach), still below alpha_family."""
     import importlib
 
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
     log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = next(f for f in rep["findings"] if f["cause"] == "outlier")
     assert f["evidence"]["centred_turn_p"] == p, f["evidence"]
     assert f["evidence"]["confidence"] == confidence, f["evidence"]
@@ -640,13 +623,10 @@ def test_gen_a_reseat_hysteresis_1609_repeats_above_the_model_is_not_confident(s
     generator's ``sigmas`` 1.0 the same campaign was c_drift confident on main as well (the withdrawn
     noise-excess rule of session 11 kept it confident: its repeats, 1.02 um, are under its 1.5 um
     ceiling). Main fails both."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate("reseat_hysteresis", 1609, **({} if sigmas is None else {"sigmas": sigmas}))
-    t = from_log(log)
-    d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     f = d.findings[0]
     assert f.cause != "unexplained" and f.evidence["confidence"] == "ambiguous", f.evidence
     x = f.evidence["repeats_beyond_residual"]
@@ -661,13 +641,10 @@ def test_gen_b_thermal_drift_1072_repeats_beyond_residual_below_explained_leaves
     (F = 2.3, p = 6.5e-4, below the lack-of-fit family's 0.0025): an excess of 117 um^2 over the campaign
     beside the 314 um^2 the drift explains. The drift is no part of a bigger structure: thermal_drift stays
     named (with the repeats' test alone, no comparison with what the cause explains, it was ambiguous)."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_b
 
     log, _ = gen_b.generate("thermal_drift", 1072)
-    t = from_log(log)
-    d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     f = d.findings[0]
     assert f.cause == "thermal_drift" and f.evidence["confidence"] == "named", f.evidence
     assert "repeats_beyond_residual" not in f.evidence
@@ -820,13 +797,10 @@ def test_gen_a_part_change_a_boss_ovalising_named(seed):
     1 - exp(-t/tau)) and its U95 covers noise only: found/truth 0.68-0.98 on these seeds (1059, tau 718 s
     against a 2188 s campaign, 0.68; core/causes.py part_change_scans); within 25 % is checked on 1017
     (0.955), the form's bias bound met where tau is not short against the campaign."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("part_change", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == tr.params["feature"], rep["rejected"]
     d = dict(zip(map(str, tr.targets), np.asarray(tr.workpiece_end_um) - np.asarray(tr.workpiece_um)))
@@ -857,17 +831,16 @@ def test_dropped_cause_still_significant_is_no_none(seed, monkeypatch):
     default both are now named part_change, ambiguous with the slip; the dropped-cause mechanism is tested with
     that rule off."""
     from core import discover as D
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_b
 
     log, _ = gen_b.generate("part_change", seed)
     t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert rep["cause"] == "part_change" and f["evidence"]["indistinguishable_counter"] == "fixture slip", rep["cause"]
     monkeypatch.setattr(D, "SLIP_OFF_FEATURE", False)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["cause"] == "unexplained", (rep["cause"], rep["rejected"])
     left = rep["structure"]["extended"]["dropped_still_significant"]
     assert [d["cause"] for d in left] == ["part_change"] and left[0]["p_adjusted"] < Settings().alpha_family, left
@@ -1027,12 +1000,8 @@ def test_a_named_cause_beside_turned_outliers_is_in_doubt(seed, cause):
     the reason names the turn."""
     import importlib
 
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
     log, _ = importlib.import_module("scenarios.blind.gen_a").generate("reseat_hysteresis", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     # (1047's stylus_bending explains less than the turned outliers carry: session 25's
     # NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED puts `unexplained` ahead of it, the cause second)
     first = next(f for f in rep["findings"] if f["cause"] != "unexplained")
@@ -1108,11 +1077,10 @@ def test_gen_b_stylus_bending_1041_named_where_the_feature_term_nests_it():
     quadratic in sin e), as it nests a position cause, and refuses it only below rival_share of it. Named,
     ambiguous (indistinguishable from a smooth in the feature on this design); the engine before this change
     reads `unexplained` (fails)."""
-    from core.baseline import extra_columns
 
     log, tr, t, _ = _gen_b_baseline("stylus_bending", 1041)
     assert "stylus_bending" in tr.acceptable_causes
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "stylus_bending", rep["rejected"]
     assert f["evidence"]["confidence"] == "ambiguous"
@@ -1157,13 +1125,10 @@ def test_gen_a_outliers_beside_unnamed_structure_not_confidently_misnamed(effect
     slip veto's step starts at the knock's own first touch (core.discover._exact_step; the best trial started
     it one touch late and left that touch beyond the bound): knock 1085's outliers are the knock's, kept in
     the fit, and the report reads `unexplained` with no outlier finding, the right reading."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate(effect, seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     if effect == "knock":
         assert rep["cause"] == "unexplained", rep["cause"]
         assert all(g["cause"] != "outlier" for g in rep["findings"]), [g["cause"] for g in rep["findings"]]
@@ -1283,7 +1248,6 @@ def test_c_drift_judged_on_a_form_that_predicts(monkeypatch, gen, seed, refused)
     import importlib
 
     import core.discover as D
-    from core.baseline import extra_columns
     from core.touches import from_log
 
     log, tr = importlib.import_module(f"scenarios.blind.{gen}").generate("c_drift", seed)
@@ -1298,7 +1262,7 @@ def test_c_drift_judged_on_a_form_that_predicts(monkeypatch, gen, seed, refused)
         monkeypatch.setattr(D, "CONFOUNDED_FALLBACK", True)
 
     def run():
-        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        return discovered(log, t).to_report()
 
     rep = run()
     f = rep["findings"][0]
@@ -1318,7 +1282,6 @@ def test_confounded_fallback_by_held_out_gain(monkeypatch):
     with the variant every passing form is judged and the one named has the largest held-out gain of them (its
     evidence says so); with the first-by-p step it is the first that passes, whose gain is not above it."""
     import core.discover as D
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_b
 
@@ -1330,7 +1293,7 @@ def test_confounded_fallback_by_held_out_gain(monkeypatch):
     t = from_log(log)
 
     def run():
-        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        return discovered(log, t).to_report()
 
     monkeypatch.setattr(D, "CONFOUNDED_FALLBACK", True)
     first = run()["findings"][0]
@@ -1378,7 +1341,6 @@ def test_confounded_step_by_least_inflation_names_c_drift_1125(monkeypatch):
     + U95 0.50: the study's aim ``ext <= base + U95``). With the switch off the step is never taken and the campaign
     reads `unexplained`, confidently: a miss."""
     import core.discover as D
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
     from scenarios.hidden import blind_outcome
@@ -1388,7 +1350,7 @@ def test_confounded_step_by_least_inflation_names_c_drift_1125(monkeypatch):
     t = from_log(log)
 
     def run():
-        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        return discovered(log, t).to_report()
 
     rep = run()
     assert rep["cause"] == "c_drift", rep["rejected"]
@@ -1436,13 +1398,10 @@ def test_gen_a_lobing_per_setup_not_called_oriented_on_its_orientations_alone(se
     oriented probe, the orientations' spread (15-60 deg) within its U95 (43-80 deg), while the set-ups' lobing
     vectors lay apart by 3-7 times their U95 and the fixed lobes were refused (held-out loss, or a share 0.50
     of the azimuth's structure). Named `lobing_per_setup` now; the engine before reads `unexplained` (fails)."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("lobing_per_setup", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["findings"][0]["cause"] == "lobing_per_setup", rep["rejected"]
     assert not any("oriented" in r["reason"] for r in rep["rejected"] if r["cause"] == "lobing_per_setup")
 
@@ -1489,7 +1448,6 @@ def test_cause_adopted_beside_a_dropped_cause_is_judged_again(monkeypatch, effec
     takes round one from periodic_axis_error on held-out data, and the path this test examines (a cause dropped
     after a dependant was adopted beside it) is not taken (the outcome is the same, `unexplained`)."""
     import core.discover as D
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
@@ -1506,7 +1464,7 @@ def test_cause_adopted_beside_a_dropped_cause_is_judged_again(monkeypatch, effec
         return findings(bl, terms, Qb, *a, **k)
 
     monkeypatch.setattr(D, "_findings", keep)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert gone not in [f["cause"] for f in rep["findings"]]
     assert any(r["cause"] == gone and r["reason"].startswith(("explains only part", "a plainer explanation"))
                for r in rep["rejected"]), rep["rejected"]  # the rival check's words (_demotion_reason)
@@ -1529,10 +1487,9 @@ def test_gen_b_lobes_not_refused_by_the_feature_term_that_nests_them(effect, see
     scaled to 10 sigmas (same campaign and noise) both still read `unexplained`: a refusal of form, not power.
     With the direction family nested by the feature term (``NESTING_FAMILIES``, as a position cause is) the
     lobes pass where they explain ``rival_share`` of that term; named, ambiguous."""
-    from core.baseline import extra_columns
 
     log, tr, t, _ = _gen_b_baseline(effect, seed)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["cause"] in tr.acceptable_causes, rep["rejected"]
 
 
@@ -1549,13 +1506,9 @@ def test_plainer_of_one_explanation_leads(gen, seed):
     tell them apart), and the lobes it was preferred to in its evidence."""
     import importlib
 
-    from core.baseline import extra_columns
-    from core.touches import from_log
-
     mod = importlib.import_module(f"scenarios.blind.{gen}")
     log, _ = mod.generate("reversal", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "reversal", (f["cause"], rep["rejected"])
     assert f["evidence"]["plainer_than"]["cause"] == "probe_lobing", f["evidence"].get("plainer_than")
@@ -1565,13 +1518,10 @@ def test_plainer_of_one_explanation_leads(gen, seed):
 # --- session 19 (issue 13): position and direction causes and the feature term that nests them ---------------------
 
 def _gen_a_report(effect, seed):
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate(effect, seed)
-    t = from_log(log)
-    return tr, discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return tr, discovered(log).to_report()
 
 
 def test_fine_position_smooth_holds_the_diagnosis_xy_term():
@@ -1678,11 +1628,10 @@ def test_gen_b_thermal_drift_not_read_on_the_clock_sensor(seed):
     (:func:`core.causes.clock_sensors`): its expansion is the drift's, tried as the drift's layout, with the
     sensor named in the finding's parameters. 1038 (2.0 sigma) and 1091 (1.08) are named `thermal_drift`,
     confidently, on the sensor's course."""
-    from core.baseline import extra_columns
 
     log, tr, t, bl = _gen_b_baseline("thermal_drift", seed)
     assert set(causes.clock_sensors(bl.data)) == {"temp_spindle_C"}
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["cause"] == "thermal_drift", rep["rejected"]
     f = rep["findings"][0]
     assert f["evidence"]["confidence"] == "named", f["evidence"]
@@ -1733,13 +1682,10 @@ def test_sim_part_change_named_in_its_step_per_setup_form(seed):
     withheld in session 19 (gen_b stylus_pickup 1012's workpiece) and is on by default since session 20, where the
     steps must also be significant beyond one step at one set-up change (here p 1.6e-26 and 9.0e-37 on four
     set-ups): the test runs the default."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.hidden import hidden_campaign
 
     log, _ = hidden_campaign(("part_change",), seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change" and f["params"]["feature"] == "pocket", (rep["cause"], rep["rejected"])
     assert f["params"]["time_form"] == "per_setup", f["params"]
@@ -1751,13 +1697,10 @@ def test_plainer_rule_judges_the_winner_beyond_it_at_the_plainer_models_sigma():
     lobes' 128 um^2 beyond it (p 9e-60) fell below a materiality set by the round's sigma, 2.43 um, which still
     carries the lobes (the generator's noise is 0.2 um): the plainer name led, the lobes were refused next round
     and the azimuth kept 0.73 um. Judged at the sigma of the model with the lost motion in it the lobes stand."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("probe_lobing", 4100)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert rep["cause"] == "probe_lobing", rep["rejected"]
     assert "plainer_than" not in rep["findings"][0]["evidence"]
 
@@ -1823,18 +1766,17 @@ def test_outliers_on_a_lost_motions_visible_part_are_not_confidently_dust(monkey
     with reversal: still not confident. The outlier rule is checked with the lobes read as before (one reading:
     :data:`core.causes.ALONG_NORMAL_TOL` infinite)."""
     from core import causes
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, tr = gen_a.generate("reversal", 1033)
     t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "probe_lobing" and f["params"]["pretravel_along"] == "approach", f["params"]
     assert f["evidence"]["confidence"] == "ambiguous" and f["evidence"]["ambiguous_with"] == ["reversal"]
     monkeypatch.setattr(causes, "ALONG_NORMAL_TOL", np.inf)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and sorted(f["evidence"]["rows"]) == [34, 178], f["evidence"]
     assert f["evidence"]["approach_sign_p"] < 0.0025, f["evidence"]
@@ -1852,7 +1794,6 @@ def test_outliers_a_lost_motion_cannot_reach_are_not_evidence_for_reversal():
     times the bound reaches their residual, it stays a confident `outlier` (p 0.058)."""
     import dataclasses
 
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
@@ -1863,7 +1804,7 @@ def test_outliers_a_lost_motion_cannot_reach_are_not_evidence_for_reversal():
     p = t.p_R.copy()
     p[rows] += 3e-6 * t.n_R[rows]
     t = dataclasses.replace(t, p_R=p)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "outlier" and set(rows) <= set(f["evidence"]["rows"]), f["evidence"]
     assert f["evidence"]["approach_sign_p"] >= 0.0025, f["evidence"]
@@ -1903,12 +1844,11 @@ def test_a_step_at_one_setup_change_is_not_a_part_changing_at_every_setup(monkey
     campaign reads `unexplained`, as with the continuous form alone. The simulator's wall grown at every set-up
     (4077, 4079: the steps beyond the best one-off step at p 1e-26, 1e-36) keeps its step form (their test)."""
     from core import discover as D
-    from core.baseline import extra_columns
 
     monkeypatch.setattr(causes, "PART_CHANGE_FORMS", ("continuous", "per_setup"))
     assert D.STEP_BEYOND_ONE_OFF
     log, tr, t, _ = _gen_b_baseline("stylus_pickup", 1012)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert rep["cause"] == "unexplained", [(f["cause"], f["params"].get("time_form")) for f in rep["findings"]]
     assert not any(f["cause"] == "part_change" for f in rep["findings"])
 
@@ -1922,13 +1862,12 @@ def test_gen_b_part_change_1004_a_slip_seen_on_the_slot_alone_is_ambiguous_not_a
     through the slot alone, which the data cannot tell from the slot changing. Named, ambiguous with the slip
     (``core.discover._slip_off_feature``); with the rule off, `unexplained` as before."""
     from core import discover as D
-    from core.baseline import extra_columns
 
     log, tr, t, _ = _gen_b_baseline("part_change", 1004)
     assert "part_change" in tr.acceptable_causes
 
     def run():
-        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        return discovered(log, t).to_report()
 
     rep = run()
     f = rep["findings"][0]
@@ -1948,16 +1887,15 @@ def test_gen_b_fixture_slip_1195_a_slip_seen_off_the_slot_still_refuses_part_cha
     slip check here (the report is `unexplained` as before, no part_change): the check is exercised with that rule
     off, and the default's report is asserted too."""
     from core import discover as D
-    from core.baseline import extra_columns
 
     log, tr, t, _ = _gen_b_baseline("fixture_slip", 1195)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert not any(f["cause"] == "part_change" for f in rep["findings"]), rep["cause"]
     seen = []
     off = D._slip_off_feature
     monkeypatch.setattr(D, "_slip_off_feature", lambda *a: seen.append(off(*a)) or seen[-1])
     monkeypatch.setattr(D, "REPEATS_STRADDLED", False)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     assert not any(f["cause"] == "part_change" for f in rep["findings"]), rep["cause"]
     assert seen and max(seen) < 1e-10, seen
 
@@ -1969,14 +1907,13 @@ def test_the_slip_off_the_feature_leaves_out_all_the_features_touches(monkeypatc
     "seen elsewhere" at p 1e-17 through the slot's own touches. The feature's rows are its touches."""
     from core import causes as C
     from core import discover as D
-    from core.baseline import extra_columns
 
     seen = []
     off = D._slip_off_feature
     monkeypatch.setattr(D, "_slip_off_feature", lambda *a: seen.append((off(*a), off(*a[:3]))) or seen[-1][0])
     monkeypatch.setattr(C, "PART_CHANGE_FORMS", ("per_setup",))
     log, tr, t, _ = _gen_b_baseline("part_change", 1001)
-    discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    discovered(log, t)
     assert seen, "the slip check never reached the test"
     # with the feature's touches: the slip is not seen off the slot; from the columns' support alone it was
     assert min(p for p, _ in seen) > 0.01 and min(q for _, q in seen) < 1e-10, seen
@@ -1992,14 +1929,11 @@ def test_a_field_whose_rechosen_ridge_leaves_no_held_out_gain_is_refused(monkeyp
     again at the ridge chosen (``core.discover._rechosen_gate``) and it is refused, said so in ``rejected``; with
     the gate off it is the report's second finding (the test can fail)."""
     import core.discover as D
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_b
 
     def report():
         log, tr = gen_b.generate("nonrigid", 1003)
-        t = from_log(log)
-        return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        return discovered(log).to_report()
 
     rep = report()
     assert not any(f["cause"] == "nonrigid" for f in rep["findings"]), [f["cause"] for f in rep["findings"]]
@@ -2021,13 +1955,10 @@ def test_gen_a_thermal_bending_part_change_refused_where_every_feature_moves(see
     here the change is nothing beyond the slot's rigid motion (p 0.48) and the other features' translations in
     the same time form explain 86 um^2 beside it (p < 1e-6), so the cause is refused and the structure left
     `unexplained` (fails before: `part_change`, named). 1322 read `part_change` ambiguous (session 18's rule)."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate("thermal_bending", seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     assert "part_change" not in [f["cause"] for f in rep["findings"]], rep["findings"][0]["cause"]
     assert rep["cause"] == "unexplained"
     assert any(r["cause"] == "part_change" and r["reason"].startswith("not the feature's own change")
@@ -2039,13 +1970,10 @@ def test_gen_a_part_change_kept_where_its_form_changes_though_others_move():
     and material beside it (an unexplained rest: p 1.7e-19, 15.7 um^2), but the boss' change is a change of its
     form (its ovalisation beyond its rigid motion, p 1e-82): the confinement rule refuses only a feature that
     moves as a whole, and part_change stays named."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate("part_change", 1016)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "part_change"
     o = f["evidence"]["other_features"]
@@ -2063,13 +1991,10 @@ def test_the_confinement_rule_at_its_margins_where_the_feature_has_no_form_direc
     rule keeps the two changes and refuses the bending. A rule made stricter on the bending's side (1015 is
     1.3x inside in p, 1.09x in materiality) fails on 1015; one that refuses on p alone at 0.05 fails on 1293 and
     1156. With the rule off (PART_CHANGE_CONFINED = False) 1015 reads part_change."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate(effect, seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     if refused:
         assert rep["cause"] == "unexplained" and "part_change" not in [f["cause"] for f in rep["findings"]]
         assert any(r["cause"] == "part_change" and r["reason"].startswith("not the feature's own change")

@@ -17,6 +17,7 @@ from scipy import stats
 import core.discover as D
 from core import causes
 from core.units import UM
+from tests.discover_helpers import discovered
 
 
 @pytest.mark.parametrize("nu, r", [(0.0, 0.3), (0.0, 2.0), (0.7, 1.0), (2.0, 3.0), (5.0, 4.0), (20.0, 21.0)])
@@ -269,26 +270,20 @@ def test_a_norm_with_a_coefficient_the_data_cannot_see_is_not_reported():
     (held at 0, not known to be 0). The amplitude's gradient is 0 there, so the weak-direction check let it through
     and the report gave 3.970 +- 0.273 um, a lower bound read as an estimate (the session 22 review). A norm whose
     pair has a coefficient along a weak direction is not reported."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     import scenarios.blind.gen_a as gen_a
     log, _ = gen_a.generate("periodic_axis_error", 1025)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = next(f for f in rep["findings"] if f["cause"] == "periodic_axis_error")
     assert f["evidence"]["not_identifiable_directions"] >= 1
     assert f["params"]["EXX_amplitude_um"] is None and f["params_u95"]["EXX_amplitude_um"] is None
 
 
 def _first_finding(monkeypatch, gen, effect, seed, **flags):
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     for k, v in flags.items():
         monkeypatch.setattr(D, k, v)
     log, tr = gen.generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()[
+    return discovered(log).to_report()[
         "findings"][0], tr
 
 

@@ -18,6 +18,7 @@ import pytest
 import core.discover as D
 from scenarios import hidden
 from scenarios.blind import gen_b
+from tests.discover_helpers import discovered
 
 
 def _f(cause, **ev):
@@ -75,11 +76,8 @@ def test_under_a_refused_bump_only_where_every_outlier_lies_under_it():
 # --- the two blind campaigns (spent) ---
 
 def _report(effect, seed):
-    from core.baseline import extra_columns
-    from core.touches import from_log
     log, _ = gen_b.generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return discovered(log).to_report()
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import core.discover as D
+from tests.discover_helpers import discovered
 
 
 @pytest.mark.parametrize("seed", [1000, 1209])
@@ -38,13 +39,10 @@ def test_repeats_floor_figures_in_the_report():
     """gen_a reseat_hysteresis 1000's report: the finding's ``repeats_floor`` holds the repeats' sigma above the
     residuals', the lower tail below Settings.alpha, and the diagnosis it lists is material at the residuals'
     floor (explained RMS at least material_sigma times it) and significant at alpha_family."""
-    from core.baseline import extra_columns
-    from core.touches import from_log
     from scenarios.blind import gen_a
 
     log, _ = gen_a.generate("reseat_hysteresis", 1000)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     st = D.Settings()
     assert rep["cause"] == "unexplained"
     ev = rep["findings"][0]["evidence"]

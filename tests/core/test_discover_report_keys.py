@@ -20,10 +20,9 @@ import pathlib
 import pytest
 
 from core import causes
-from core.baseline import extra_columns
-from core.discover import Finding, _report_u95, discover
+from core.discover import Finding, _report_u95
 from core.probelog import parse_probe_log
-from core.touches import from_log
+from tests.discover_helpers import discovered
 
 HERE = pathlib.Path(__file__).parent / "data" / "report_keys"
 
@@ -32,8 +31,7 @@ HERE = pathlib.Path(__file__).parent / "data" / "report_keys"
 def readme_report():
     name = "readme-cross-pocket-seed1.csv.gz"
     log = parse_probe_log(gzip.decompress((HERE / name).read_bytes()).decode(), name)
-    t = from_log(log)
-    return discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return discovered(log).to_report()
 
 
 def test_every_param_has_its_u95_key(readme_report):

@@ -15,6 +15,7 @@ import pytest
 
 import core.discover as D
 from core.discover import _beside_smooth
+from tests.discover_helpers import discovered
 
 
 def _linear_case(lam):
@@ -71,7 +72,6 @@ def test_beside_smooth_carries_a_real_shift():
 
 
 def _run(effect, seed, beside):
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.blind import gen_a
 
@@ -80,7 +80,7 @@ def _run(effect, seed, beside):
     old = D.MAGNITUDES_BESIDE_SMOOTH
     try:
         D.MAGNITUDES_BESIDE_SMOOTH = beside
-        rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        rep = discovered(log, t).to_report()
     finally:
         D.MAGNITUDES_BESIDE_SMOOTH = old
     return tr, rep

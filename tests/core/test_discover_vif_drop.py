@@ -16,15 +16,13 @@ import numpy as np
 import pytest
 
 import core.discover as D
+from tests.discover_helpers import discovered
 
 
 def _report(gen, effect, seed):
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return discovered(log).to_report()
 
 
 def test_determined_drops_directions_beyond_vif_max(monkeypatch):

@@ -27,10 +27,9 @@ import importlib
 import numpy as np
 import pytest
 
-from core.baseline import extra_columns
 from core.discover import discover
-from core.touches import from_log
 import discover_synth as S
+from tests.discover_helpers import discovered
 
 TAU_FRACTION = 0.15  # the warm-up's time constant over the campaign's duration
 
@@ -87,8 +86,7 @@ def test_a_warm_up_campaign_is_named_with_a_noise_near_the_truth():
     relative standard error, 1 / sqrt(2 * 5) = 32 %), and the drift is named."""
     gen = importlib.import_module("scenarios.blind.gen_a")
     log, truth = gen.generate("thermal_drift", 1204)
-    t = from_log(log)
-    d = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     assert d.cause == "thermal_drift"
     assert abs(d.noise["sigma_um"] / truth.noise_um - 1) < 0.3, (d.noise["sigma_um"], truth.noise_um)
 

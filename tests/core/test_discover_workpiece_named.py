@@ -19,6 +19,7 @@ import pytest
 import core.discover as D
 from scenarios import hidden
 from scenarios.blind import gen_a
+from tests.discover_helpers import discovered
 
 
 def _fl1009():
@@ -49,12 +50,9 @@ def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(m
 @pytest.mark.slow
 def test_gen_a_feed_latency_1009_report_names_the_alternative_shift(monkeypatch):
     monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     log, _ = gen_a.generate("feed_latency", 1009)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     sh = f["evidence"]["workpiece_shift_alternative"]
     assert f["cause"] == "part_change" and sh["alternative"] == "nonrigid" and sh["carried_in_u95"]
@@ -63,14 +61,11 @@ def test_gen_a_feed_latency_1009_report_names_the_alternative_shift(monkeypatch)
 
 
 def _rh1060_shift(monkeypatch, form_only):
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     monkeypatch.setattr(D, "OUTLIER_REFIT_FORM_ONLY", form_only)
     monkeypatch.setattr(D, "OUTLIER_BELOW_KEPT", False)  # (a fifth outlier, below the touches kept at its target)
     log, _ = gen_a.generate("reseat_hysteresis", 1060)
-    t = from_log(log)
-    d = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     fo = next(f for f in d.findings if f.cause == "outlier")
     return len(d.outlier_rows), fo.evidence["workpiece_shift"]
 

@@ -15,13 +15,12 @@ import pytest
 
 import core.baseline as Bm
 from core import discover as D
+from tests.discover_helpers import discovered
 
 _DENSE = D._forms_dense_choice
 
 
 def _campaign(which, seed):
-    from core.baseline import extra_columns
-    from core.touches import from_log
 
     if which == "sim":
         from scenarios.hidden import hidden_campaign
@@ -31,8 +30,7 @@ def _campaign(which, seed):
         from scenarios.blind import gen_b
 
         log, _ = gen_b.generate(which, seed)
-    t = from_log(log)
-    return lambda: D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    return lambda: discovered(log).to_report()
 
 
 def _spy(monkeypatch, calls):

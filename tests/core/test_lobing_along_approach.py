@@ -12,15 +12,14 @@ import numpy as np
 import core.discover as D
 import discover_synth as S
 from core import causes
-from core.baseline import extra_columns, planar
-from core.touches import from_log
+from core.baseline import planar
 from scenarios.blind import gen_a, gen_b
+from tests.discover_helpers import discovered
 
 
 def _finding(mod, effect, seed):
     log, tr = mod.generate(effect, seed)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = [f for f in rep["findings"] if f["cause"] == effect]
     assert f, (effect, seed, rep["cause"])
     return f[0], tr
@@ -41,8 +40,7 @@ def test_probe_lobing_in_two_readings_is_still_an_alternative_name():
     explanation under two names" took only causes of single-trial scans: gen_a reversal 1031 went from reversal,
     ambiguous with probe_lobing, to reversal, confident. Each reading is a fixed layout of that check."""
     log, tr = gen_a.generate("reversal", 1031)
-    t = from_log(log)
-    rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     f = rep["findings"][0]
     assert f["cause"] == "reversal" and f["evidence"]["confidence"] == "ambiguous", f["evidence"].get("confidence")
     assert "probe_lobing" in f["evidence"].get("ambiguous_with", ()), f["evidence"].get("ambiguous_with")

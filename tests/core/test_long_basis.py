@@ -9,8 +9,8 @@ import scipy.sparse as sp
 
 import core.baseline as Bm
 import core.diagnosis as Dg
-import core.discover as D
 import core.lsq as L
+from tests.discover_helpers import discovered
 
 
 def _whole_norms(M):
@@ -87,15 +87,13 @@ def test_subtract_matmul_is_the_basis_product(monkeypatch):
 def test_discover_with_every_block_path_forced(monkeypatch, seed):
     """The whole discovery of a block-design campaign with the blocks forced on every narrow matrix (of 7 rows) gives
     the report of the whole arrays' operations, byte for byte."""
-    from core.baseline import extra_columns
     from core.touches import from_log
     from scenarios.hidden import hidden_campaign
 
     monkeypatch.setattr(Bm, "DENSE_DESIGN_BYTES", 0)
     log, _ = hidden_campaign(("part_change",), seed)
     t = from_log(log)
-    run = lambda: json.dumps(D.discover(t, chain=log.meta.get("kinematic_chain"),  # noqa: E731
-                                        extra=extra_columns(log, t.row)).to_report(), sort_keys=True, default=str)
+    run = lambda: json.dumps(discovered(log, t).to_report(), sort_keys=True, default=str)  # noqa: E731
     monkeypatch.setattr(Dg, "LONG_BYTES", 1 << 60)
     monkeypatch.setattr(L, "GROUP_CELLS_MAX", 1 << 60)
     ref = run()

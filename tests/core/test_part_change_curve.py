@@ -15,9 +15,9 @@ import pytest
 
 import core.causes as C
 from core.baseline import extra_columns, planar
-from core.discover import discover
 from core.lsq import orth_of
 from core.touches import from_log
+from tests.discover_helpers import discovered
 
 
 def _campaign(gen, effect, seed):
@@ -64,7 +64,7 @@ def test_gen_a_part_change_1080_named_with_its_curve(monkeypatch, curve):
     beside their changes; without it (the flag off: the engine before) it is not."""
     monkeypatch.setattr(C, "PART_CHANGE_CURVE", curve)
     log, tr, t = _campaign("gen_a", "part_change", 1080)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     f = rep["findings"][0]
     if not curve:
         assert f["cause"] != "part_change", f
@@ -80,7 +80,7 @@ def test_gen_a_part_change_1080_named_with_its_curve(monkeypatch, curve):
 
 def _first_and_rejected(gen, effect, seed):
     log, tr, t = _campaign(gen, effect, seed)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log, t).to_report()
     return rep["findings"][0], [r["reason"] for r in rep["rejected"] if r["cause"] == "part_change"]
 
 

@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 
 import core.discover as D
-from core.baseline import extra_columns
 from core.touches import from_log
 from scenarios.blind import gen_a, gen_b
+from tests.discover_helpers import discovered
 
 
 def _call(mod, seed):
@@ -38,7 +38,7 @@ def _call(mod, seed):
     t = from_log(log)
     D._reading_u95 = hook
     try:
-        rep = D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+        rep = discovered(log, t).to_report()
     finally:
         D._reading_u95 = orig
     got = [g for g in got if g[1] is not None]

@@ -6,6 +6,7 @@ import pytest
 
 from core.diagnosis import Covariate
 from scenarios.reports import TIME_IN_HOURS_S, _discovery_sections, diagnosis_axis
+from tests.discover_helpers import discovered
 
 
 class _Bl:
@@ -59,8 +60,6 @@ def test_the_report_figure_of_a_drifting_campaign_reads_its_units(tmp_path):
     """A drift written into a simulated cross pocket (as review 27's drift run): time, time within a set-up
     and the touch order carry structure; every panel's x label names its unit or scale, categories their
     names."""
-    from core.baseline import extra_columns
-    from core.discover import discover
     from core.probelog import read_probe_log
     from core.touches import from_log
     from tests.scenarios.test_discover_cli_summary import drift_log
@@ -68,7 +67,7 @@ def test_the_report_figure_of_a_drifting_campaign_reads_its_units(tmp_path):
     log = drift_log(tmp_path)
     lg = read_probe_log(log)
     t = from_log(lg)
-    d = discover(t, chain=lg.meta.get("kinematic_chain"), extra=extra_columns(lg, t.row))
+    d = discovered(lg, t)
     rep = d.to_report()
     secs = _discovery_sections(d, t, rep)
     fig = next(s.figures["diagnosis"] for s in secs if "diagnosis" in s.figures)

@@ -15,15 +15,13 @@ import numpy as np
 import pytest
 
 import core.discover as D
-from core.baseline import extra_columns
-from core.touches import from_log
 from scenarios.blind import gen_c
+from tests.discover_helpers import discovered
 
 
 def _discover(effect, seed, **kw):
     log, _ = gen_c.generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row), **kw)
+    return discovered(log, **kw)
 
 
 @pytest.fixture
@@ -75,8 +73,7 @@ def test_a_ripple_finer_than_the_map_stays_named(monkeypatch):
 def _discover_b(effect, seed):
     from scenarios.blind import gen_b
     log, _ = gen_b.generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    return discovered(log)
 
 
 def test_a_finer_map_that_loses_the_workpiece_is_not_taken(monkeypatch):

@@ -54,6 +54,7 @@ import numpy as np
 import pytest
 
 from scenarios.hidden import HIDDEN_CAUSES, Outcome, blind_outcome, catalogue_names, format_study, hidden_outcome, summarize
+from tests.discover_helpers import discovered
 
 SEEDS = {"hidden": (1000,), "gen_a": (0,), "gen_b": (0,)}
 #: Aim for out-of-catalogue effects (unexplained or acceptably named).
@@ -456,12 +457,8 @@ def test_the_noise_beyond_a_drift_model_is_taken_where_shown():
     mod = _blind("gen_a")
     if mod is None:
         pytest.skip("gen_a generator absent")
-    from core.baseline import extra_columns
-    from core.discover import discover
-    from core.touches import from_log
     log, tr = mod.generate("thermal_drift", 1201)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     noise = rep["noise_um"]
     assert noise["method"] == "repeats beyond the model's terms", noise["method"]
     assert 0.41 * tr.noise_um < noise["sigma_um"] < 1.66 * tr.noise_um, (noise["sigma_um"], tr.noise_um)

@@ -13,15 +13,14 @@ import numpy as np
 import pytest
 
 from core import discover as disc
-from core.baseline import extra_columns
 from core.touches import from_log
 from scenarios.blind import gen_c
+from tests.discover_helpers import discovered
 
 
 def _report(effect, seed, machine="affine"):
     log, _ = gen_c.generate(effect, seed, noise=False, machine=machine)
-    t = from_log(log)
-    d = disc.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    d = discovered(log)
     return d, d.to_report()
 
 
@@ -75,10 +74,9 @@ def test_noisy_campaign_untouched_by_the_floor():
     # with the probe's noise the floor is seven orders below every scatter: the same report as with no floor
     log, _ = gen_c.generate("probe_lobing", 3)
     t = from_log(log)
-    kw = dict(chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
-    a = disc.discover(t, **kw).to_report()
+    a = discovered(log, t).to_report()
     import unittest.mock as um
     with um.patch.object(disc, "ROUNDOFF_ULPS", 0.0):
-        b = disc.discover(t, **kw).to_report()
+        b = discovered(log, t).to_report()
     import json
     assert json.dumps(a, sort_keys=True, default=str) == json.dumps(b, sort_keys=True, default=str)

@@ -18,16 +18,14 @@ import pytest
 from scipy import stats
 
 import core.discover as D
-from core.baseline import extra_columns
 from core.diagnosis import Diagnosis, NestedTest
-from core.touches import from_log
 from scenarios.blind import gen_c
+from tests.discover_helpers import discovered
 
 
 def _discover(effect, seed):
     log, _ = gen_c.generate(effect, seed)
-    t = from_log(log)
-    return D.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row))
+    return discovered(log)
 
 
 @pytest.mark.parametrize("m,k", [(19, 6), (19, 50), (5, 30), (2, 1)])

@@ -14,6 +14,7 @@ import pytest
 
 from core.positioning import iso230_2
 from scenarios.positioning import simulate_test
+from tests.discover_helpers import discovered
 
 SIZE_UM = 6.0
 
@@ -84,14 +85,10 @@ def test_a_sense_without_a_lost_motion_is_refused():
 
 
 def _discovered(effect, seed):
-    from core.baseline import extra_columns
-    from core.discover import discover
-    from core.touches import from_log
     from scenarios.hidden import hidden_campaign
 
     log, truth = hidden_campaign((effect,), seed)
-    t = from_log(log)
-    rep = discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     return truth, rep
 
 

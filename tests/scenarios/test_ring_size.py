@@ -19,12 +19,12 @@ from core import discover as disc
 from core.baseline import extra_columns
 from core.lsq import _dense
 from core.touches import from_log
+from tests.discover_helpers import discovered
 
 
 def _report(mod, effect, seed):
     log, tr = mod.generate(effect, seed)
-    t = from_log(log)
-    rep = disc.discover(t, chain=log.meta.get("kinematic_chain"), extra=extra_columns(log, t.row)).to_report()
+    rep = discovered(log).to_report()
     return log, tr, rep
 
 
