@@ -375,7 +375,8 @@ class Settings:
         (:func:`core.causes.fixture_slip`), adopted on every row, leaves
         none of them an outlier (they were the slip's touches) and either
         they outnumber its parameters or the set-up's other touches see
-        it (:func:`_slip_explains`): the
+        it (:func:`_slip_explains`); the outliers of set-ups that no step
+        explains stay dust (:data:`SLIP_VETO_PER_EVENT`): the
         default, measured against the other two on fresh seeds
         (docs/discovery.md).
     grid_steps_mm : tuple of float
@@ -1469,7 +1470,8 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         row, leaves none of them beyond the bound, and either they
         outnumber its parameters or it is significant on the other touches
         (every outlier set aside): they were that step's touches
-        (:func:`_slip_explains`).
+        (:func:`_slip_explains`). With :data:`SLIP_VETO_PER_EVENT` only those
+        events' outliers are kept; the others' are returned.
     places : Places, optional
         Where on the part each row touches (feature, target) and what one
         piece of dust corrupts at one place (:func:`places_of`): the
