@@ -510,6 +510,34 @@ def test_a_dirty_set_up_is_dust_but_a_slip_within_it_is_not():
     assert find_outliers(X, slip, ranks=ranks, rng=g(0), events=setup, slips=lambda: trials) == []
 
 
+def test_a_slip_explains_its_own_set_up_not_another_set_ups_chips(monkeypatch):
+    """review32c F3 (cat_outlier_20010): one set-up's step explaining that set-up's outliers kept every outlier
+    of the campaign, chips of another set-up too (two chips of set-up S1 kept beside S3's step: a confident
+    `unexplained`). The same slip as above in set-up 2 (three outliers it explains, more than its one
+    parameter) and two chips of 12 sigma in set-up 0, where no step is given that could take them (set-up 0's
+    trials move only its tail from touch 20 on; the chips are touches 5 and 17): the slip's rows stay, the
+    chips go (SLIP_VETO_PER_EVENT); off, nothing goes (the rule before)."""
+    import core.discover as D
+
+    rng = np.random.default_rng(12)
+    n, per = 120, 30
+    setup = np.repeat(np.arange(4), per)
+    pos = np.tile(np.arange(per), 4)
+    ranks = np.column_stack([(np.arange(n) + 0.5) / n, (rng.permutation(n) + 0.5) / n])
+    w = rng.uniform(-0.1, 0.1, n)
+    w[[62 + 20, 62 + 23, 62 + 27]] = 1.0
+    trials = np.array([(w * ((setup == j) & (pos >= s)))[:, None] for j in range(4) for s in range(20, per)])
+    X = np.column_stack([np.ones(n), np.linspace(-1, 1, n)])
+    y = rng.normal(0, 1, n)
+    y[(setup == 2) & (pos >= 20)] += 12.0 * w[(setup == 2) & (pos >= 20)]
+    y[[5, 17]] += 12.0
+    g = np.random.default_rng
+    assert find_outliers(X, y, ranks=ranks, rng=g(0), events=setup) == [5, 17, 82, 85, 89]
+    assert find_outliers(X, y, ranks=ranks, rng=g(0), events=setup, slips=lambda: trials) == [5, 17]
+    monkeypatch.setattr(D, "SLIP_VETO_PER_EVENT", False)
+    assert find_outliers(X, y, ranks=ranks, rng=g(0), events=setup, slips=lambda: trials) == []
+
+
 def test_chips_a_step_could_absorb_are_dust_when_nothing_else_moved():
     """A slip moves every touch after it; a chip only the touch it sits under. gen_a outlier 1108 (two chips
     in set-up 0, 12 and 14 sigma, and one in set-up 3) and 1109 (two in set-up 0, two elsewhere): the best
