@@ -49,7 +49,6 @@ def campaign(seed: int, bow_um: float, C=(0.0, 37.0, 151.0, 270.0), wander=0.08)
     rng = np.random.default_rng(seed)
     sigma = rng.uniform(0.2, 0.5)
     T = part()
-    ids = [t["id"] for t in T]
     # true workpiece form (um, along the outward normal)
     g = {}
     hole_d = {f"hole{k}": (rng.normal(0, 2.0, 2), rng.normal(0, 1.5)) for k in range(6)}

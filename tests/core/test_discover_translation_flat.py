@@ -13,7 +13,6 @@ Before the fix (session 32's start, a66daea) the campaign below chose the penalt
 test failed there (the penalty at +500 mm); now 100 at every translation, the workpiece the same to 1e-9 um.
 """
 
-import numpy as np
 import pytest
 
 from core.baseline import extra_columns

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-import core.discover as D
 import discover_synth as S
 from core import causes
 from core.baseline import planar

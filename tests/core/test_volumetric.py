@@ -372,7 +372,7 @@ def test_exact_extraction_predicts_the_points_fitted_from_the_moved_touches(meas
     _, r3, _ = vol._rows(meas, chain, rp, d.nodes, theta, d.slices, n, exact=True, jacobian=False, prep=prep)
     _, r3x, _ = vol._rows(meas, chain, rp, d.nodes, theta, d.slices, n, exact=True, jacobian=False, prep=prep,
                           extraction=True)
-    at, worst, r0 = 0, 0.0, 0
+    worst, r0 = 0.0, 0
     for i, m in enumerate(meas):
         pm = prep[i]
         W = vol._axis_weights(d.nodes, pm["qt"] + np.asarray(pm["g"].J_m, float))
