@@ -42,14 +42,20 @@ def test_rules_as_shipped():
 def test_8907_hedged_inflated_shift_carried(monkeypatch):
     """With the rule (``inflated``): the name, the findings and the estimate are the ones without it; the U95 reaches
     the truth (6.909 <= 1.053 + 6.937)."""
-    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
-    o0 = _a8907()
-    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated")
-    o1 = _a8907()
+    _held_by_the_u95_only(monkeypatch, _a8907, None, "inflated")   # without the rule: the session 31 miss
+
+
+def _held_by_the_u95_only(monkeypatch, run, before, after):
+    """``run()`` read with HEDGED_SHIFT_CARRIED ``before`` fails its workpiece check and with ``after`` holds it,
+    the reading (``unexplained`` beside ``part_change``) and the estimate the same both ways."""
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", before)
+    o0 = run()
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", after)
+    o1 = run()
     assert (o1.cause, o1.confident, o1.findings) == (o0.cause, o0.confident, o0.findings) == \
         ("unexplained", True, ("unexplained", "part_change")), o1
     assert o1.wp_ext_um == o0.wp_ext_um and o1.wp_base_um == o0.wp_base_um  # the estimate does not move
-    assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0  # without the rule: the session 31 miss
+    assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0
     assert o1.wp_ext_um <= o1.wp_base_um + o1.wp_u95_um, o1
 
 
@@ -65,15 +71,7 @@ def test_gen_b_9309_confident_inflated_shift_carried(monkeypatch):
     def run():
         return blind_outcome(gen_b, "signal_latency", 9309, generator="gen_b")
 
-    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated")
-    o0 = run()
-    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated_any")
-    o1 = run()
-    assert (o1.cause, o1.confident, o1.findings) == (o0.cause, o0.confident, o0.findings) == \
-        ("unexplained", True, ("unexplained", "part_change")), o1
-    assert o1.wp_ext_um == o0.wp_ext_um and o1.wp_base_um == o0.wp_base_um  # the estimate does not move
-    assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0  # the blind miss with vif32's mode
-    assert o1.wp_ext_um <= o1.wp_base_um + o1.wp_u95_um, o1
+    _held_by_the_u95_only(monkeypatch, run, "inflated", "inflated_any")   # vif32's mode: the blind miss
 
 
 @pytest.mark.slow
