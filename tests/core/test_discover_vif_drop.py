@@ -63,6 +63,7 @@ def test_c_drift_1998_workpiece_within_u95_only_with_the_rule(monkeypatch):
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", False)  # (the drop alone; the form choice is tested below)
     monkeypatch.setattr(D, "VIF_FORM_BY_GAIN", False)  # (nor session 30's choice by gain: on since form30)
     monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)  # (nor session 32's: an inflated named term's shift)
     monkeypatch.setattr(D, "VIF_DROP_BEYOND_MAX", True)
     on = blind_outcome(gen_a, "c_drift", 1998, generator="gen_a")
     assert on.cause == "c_drift" and on.confident
@@ -104,6 +105,7 @@ def test_c_drift_least_inflated_form_when_a_direction_is_beyond_vif_max(monkeypa
     # form30, would take the same per-set-up form by its gain, with another evidence line, and mend "off" too)
     monkeypatch.setattr(D, "VIF_FORM_BY_GAIN", False)
     monkeypatch.setattr(D, "FORM_SHIFT_CARRIED", False)  # (v328's figures: the other forms' shift not carried)
+    monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)  # (nor session 32's: an inflated named term's shift)
     monkeypatch.setattr(D, "VIF_DROP_LEAST_INFLATION", True)
     on = blind_outcome(gen_a, "c_drift", seed, generator="gen_a")
     assert on.cause == "c_drift" and on.confident
