@@ -79,9 +79,15 @@ def pmap(func, tasks, *, dask: str | None = None, workers: int | None = None) ->
         except BaseException:
             # interrupted (Ctrl-C, or SIGTERM sent to this process alone: scenarios.cli.guard): the workers stop
             # now, the tasks not begun are dropped, rather than the exit waiting for every task (session 32)
-            for proc in list((getattr(ex, "_processes", None) or {}).values()):
-                proc.terminate()
+            # (the workers listed before the shutdown, which forgets them; each ended and waited for, so none is
+            # left running after the command's last line. A worker whose start the signal interrupted is not listed:
+            # it ends by itself, reading a closed pipe)
+            procs = list((getattr(ex, "_processes", None) or {}).values())
             ex.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                proc.terminate()
+            for proc in procs:
+                proc.join(timeout=10)
             raise
         ex.shutdown(wait=True)
         return out
