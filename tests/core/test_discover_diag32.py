@@ -11,7 +11,7 @@ the screen or the floor). docs/discovery.md, "Session 32: the second blind check
    it, both beyond :data:`core.discover.OUTLIER_EVENT_MARGIN` 1.25, two events: one per set-up); what is left of
    the change is not named. :data:`core.discover.OUTLIER_CHIPS_READ_MORE` (off) sets nothing aside here and names
    ``part_change`` (p 8.5e-12, wall change 6.85 um).
-2. gen_a reseat_hysteresis 9702 -> ``outlier``, confident: 45 touches read -7.5 um (the first after a turn); 39 are
+2. gen_a reseat_hysteresis 9702 -> ``outlier``, confident: 45 touches read -6.2 to -7.5 um (the first after a turn); 39 are
    13 targets flagged at every visit (absorbed by their workpiece values), the other 6 on 5 targets flagged at some
    visits only: the screen's five rows are exactly those targets' odd touches (159, 167, 173, 214, 274; strengths
    8.9-11.1 against 4.81, two events). No rule built and off mends it.
@@ -21,7 +21,7 @@ the screen or the floor). docs/discovery.md, "Session 32: the second blind check
    24 right -> wrong on tuning) refuses it: ``stylus_bending``, hedged.
 4. gen_b none 9704 -> ``unexplained``, confident (lack of fit): the repeats' floor is 0.132 um (16 dof, per-set-up
    time trend; 0.152 with 24 dof plain) for a true 0.280 and a residual 0.275: a draw that low has probability
-   5e-4 (3e-4 plain) under gen_b's Gaussian noise; on gen_b none 1000-1019 the floor is 0.63-1.30 of the truth.
+   5e-4 (3e-4 plain) under gen_b's Gaussian noise; on gen_b none 1000-1019 the floor is 0.61-1.30 of the truth.
    No rule built and off mends it.
 """
 
