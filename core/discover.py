@@ -1578,7 +1578,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
 #: review32c F3 (cat_outlier_20010, its own generator): chips of 11.5, 18.5, 12.3 um on rows 19, 26 (set-up S1) and
 #: 96 (S3); S3's step fitted row 96 exactly (leverage >= 0.99, unjudged) and S3's other touches saw a step (p 2.4e-5,
 #: 0.0017 after Bonferroni against 0.0025: :data:`SLIP_UNJUDGED_BY_OTHERS`), so S1's two chips, which no step
-#: explained, were kept too and the report read a confident `unexplained`. Session 32, docs/discovery.md.
+#: explained, were kept too and the report read a confident `unexplained`. Session 32, docs/discovery-studies.md, "Session 32: a slip explains its own set-up's outliers".
 #: **Off since session 32's end** (the lead): the fresh clone's full suite found a cost slip32's 730 tuning campaigns
 #: did not hold: gen_a knock 1085 (out of the catalogue; tests/core/test_discover_misses.py) reads `unexplained`
 #: without it, the right reading, and `outlier?` with it (one touch of another set-up set aside beside the knock's
@@ -5560,7 +5560,7 @@ VIF_DROP_BEYOND_MAX = False
 #: workpiece: 0.694 against 1.053 + 1.289 with it) but refuses right forms, which are inflated beyond ``vif_max``
 #: along some direction as a rule: 24 right -> wrong on gen_a/gen_b 1000-1004's 175 effect campaigns (thermal_drift,
 #: probe_lobing, reversal, c_drift, lobing_per_setup, stylus_bending, part_change -> ``unexplained``), none wrong ->
-#: right, no check gained. Off. docs/discovery.md, "Session 32: a workpiece moved along an inflated direction".
+#: right, no check gained. Off. docs/discovery-studies.md, "Session 32: a workpiece moved along an inflated direction".
 VIF_WORST_REFUSED = False
 
 
@@ -8326,7 +8326,7 @@ REPEATS_STRADDLED = True
 #: (without one every group may, as before). Two touches one right after the other hold no step between them;
 #: Cochran's test is not robust to a heavy-tailed probe, and review32c F1's none_20011 (Student-t 4 noise) lost
 #: such a pair 7 s apart (a noise tail), its floor 0.083 um for a true 0.227 -> `unexplained: lack_of_fit`
-#: (docs/discovery.md, "Session 32: heavy-tailed probing noise").
+#: (docs/discovery-studies.md, "Session 32: heavy-tailed probing noise").
 STRADDLED_SEPARATED = True
 
 #: Whether the slip that refuses a workpiece-local cause must be seen off that cause's feature to refuse it
@@ -9720,7 +9720,7 @@ VOLUMETRIC_HEDGE_LEFT_RIVAL_SHARE = 0.75
 #: that measurement): where one does, a named outlier finding is ``ambiguous`` (``measurement_structure`` in its
 #: evidence). The planar analogue is the place test (:func:`_place_carries`). Only a hedge: no cause changes, and the
 #: named causes beside it are not touched (the key is not ``place_structure``). False: not asked (the behaviour
-#: before). Session 32 (mfbre32, docs/discovery.md "Session 32: MFB discovery re-measured with session 31's two
+#: before). Session 32 (mfbre32, docs/discovery-studies.md "Session 32: MFB discovery re-measured with session 31's two
 #: changes together"): review31c's realistic bar with a 3 um temperature gradient along it (seed 315) read `outlier`
 #: named, its two outliers the ends of two standing bars' gradients along z, whose measurements' other rows carried
 #: the same parabola.
@@ -9772,7 +9772,7 @@ def _measurement_carries(bl, st, outliers, alpha: float, material_sigma: float) 
 #: axis and moves no point along it; a temperature gradient along the bar, which changes from measurement to
 #: measurement, expands it unevenly along its axis, and its part outside the baseline can look like a sag (review31c's
 #: bar_gradient read `bar_bending` named once bend31's columns took the sag about the bar's middle). Only a hedge: no
-#: cause changes. False: not asked. Session 32 (mfbre32, docs/discovery.md "Session 32: MFB discovery re-measured
+#: cause changes. False: not asked. Session 32 (mfbre32, docs/discovery-studies.md "Session 32: MFB discovery re-measured
 #: with session 31's two changes together"): review31c's bar_gradient 1.5 um (bar as calibrated, seed 349) and 3 um
 #: (realistic bar, seed 311) named `bar_bending` (3.9 and 8.1 um) at rival shares 0.82 and 0.81 (the session-31
 #: hedge's cut 0.75), the along-bar parabolas F 68 and 29 beside them; right sags F 0.5-2.2.
@@ -9962,7 +9962,7 @@ def _doubt_beside_gathered_outliers(findings: list, settings) -> None:
 #: Whether a confident ``outlier`` finding needs two events that stand beyond :data:`OUTLIER_EVENT_MARGIN` times the
 #: screen's bound (:func:`_strong_events`): an event just beyond the bound may be a heavy-tailed probe's
 #: own tail, and one strong event with such a one is no second independent piece of dust; the finding is then
-#: ambiguous, with the reason. Session 32 (review32c F5, docs/discovery.md "Session 32: heavy-tailed probing noise"): a local
+#: ambiguous, with the reason. Session 32 (review32c F5, docs/discovery-studies.md "Session 32: heavy-tailed probing noise"): a local
 #: scale defect's largest touch plus one Student-t 4 noise tail (0.63 of the bound with every row in) made two
 #: events and read `outlier`, confident. (A kurtosis test of the kept residuals was tried first: one campaign of
 #: 60 residual dof cannot see the probe's tail once its tail touch is set aside, excess kurtosis 0.20, p 0.26.)
@@ -10354,7 +10354,7 @@ FORM_SHIFT_CARRIED = True
 #: 1000-1019, gen_a thermal_bending and part_change 1000-1029, the simulator 4000-4009, gen_c 200-219) no name,
 #: confidence or estimate moved (by construction), no workpiece check moved (653 of 654 hold both ways), the U95 grew
 #: on 42 (median x1.21, max x4.9), 7 of them newly more than three times their error; ``"hedged"`` grew 158 (25
-#: newly). docs/discovery.md, "Session 32: a workpiece moved along an inflated direction".
+#: newly). docs/discovery-studies.md, "Session 32: a workpiece moved along an inflated direction".
 #: ``"inflated_any"``: every named cause, hedged or confident, whose form has a direction beyond ``vif_max`` (the
 #: lead, session 32, on the blind check's miss gen_b signal_latency 9309: a confident second-finding part_change of
 #: a slot's two walls, +16.3 and -12.3 um +- 7 um beside an unnamed smooth, moved the extended workpiece 4.80 um
@@ -10363,7 +10363,7 @@ FORM_SHIFT_CARRIED = True
 #: workpiece check moved (653 of 654 hold both ways), 22 more U95s grew (confident thermal_drift, probe_lobing,
 #: reversal, c_drift, lobing_per_setup, part_change: gen_a thermal_drift 1004 0.570 -> 1.608 um against an error of
 #: 0.372, most under x1.7). A confident name's term along a direction the data hardly determine moves the workpiece
-#: as much as a hedged one's: the U95 says so. docs/discovery.md, "Session 32: the shift of a confident inflated
+#: as much as a hedged one's: the U95 says so. docs/discovery-studies.md, "Session 32: the shift of a confident inflated
 #: term carried".
 HEDGED_SHIFT_CARRIED = "inflated_any"
 #: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated

@@ -2001,7 +2001,7 @@ def time_text(ts, biases: dict) -> str:
 #: and, when significant at :data:`SERIAL_P`, widen the U95's probing part to what AR(1) errors of the
 #: correlation found give (``not_covered["correlated_errors"]`` says so and by how much). Session 32 (unc32):
 #: review32b's Monte Carlo (perfect nmv3000, cross pocket at 4 set-ups, 368 touches, 0.3 um) gave 79 / 89 / 93 %
-#: coverage for AR(1) rho 0.8 / 0.5 / 0.3 with nothing said; docs/discovery.md "Session 32: probing errors
+#: coverage for AR(1) rho 0.8 / 0.5 / 0.3 with nothing said; docs/discovery-studies.md "Session 32: probing errors
 #: correlated in touch order" for the coverage with this on. False: neither test nor widening.
 SERIAL_CORRELATION = True
 #: The serial test's one-sided p-value threshold (positive correlation). 1e-3: on independent noise it fires

@@ -3,7 +3,7 @@
 Each campaign has a strict xfail test of the issue's aim (it fails as shipped; it passes, and so fails the suite,
 the day a rule mends it) and a test pinning the mechanism's figures. Tolerances: row sets and names exactly;
 studentized strengths and noise figures to 0.01 (values 0.1-11: far beyond BLAS rounding, well inside any change of
-the screen or the floor). docs/discovery.md, "Session 32: the second blind check's misses".
+the screen or the floor). docs/discovery-studies.md, "Session 32: the second blind check's misses".
 
 1. gen_a part_change 9707 -> ``outlier``, confident: wall6's bow grows with time (its middle target 16 reads
    +1.10, +2.77, +5.95, +6.82 um over the four set-ups); the target's workpiece value takes their mean, and the screen

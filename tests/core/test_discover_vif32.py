@@ -9,7 +9,7 @@ Session 31's blind miss: a hedged ``part_change`` of bore1 whose best direction 
 - :data:`core.discover.VIF_WORST_REFUSED`: every direction of a cause judged against ``vif_max`` (refused where the
   worst is beyond it), beside session 28's :data:`core.discover.VIF_DROP_BEYOND_MAX` (the directions dropped).
 
-docs/discovery.md, "Session 32: a workpiece moved along an inflated direction".
+docs/discovery-studies.md, "Session 32: a workpiece moved along an inflated direction".
 """
 
 import pytest

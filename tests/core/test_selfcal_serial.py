@@ -5,7 +5,7 @@ The review's case: AR(1) errors in touch order (rho 0.8, marginal 0.3 um) on the
 the slow part). The test: the residuals' lag-1 ratio ``r^T P r / r^T r`` over consecutive touches of one set-up
 against its exact mean and variance under independent errors through the fit (Durbin-Watson moments); when
 significant (core.selfcal.SERIAL_P), the probing part of the U95 is propagated as AR(1) of the rho and sigma whose
-expected residual statistics match (docs/discovery.md "Session 32: probing errors correlated in touch order").
+expected residual statistics match (docs/discovery-studies.md "Session 32: probing errors correlated in touch order").
 """
 
 from dataclasses import replace
