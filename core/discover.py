@@ -1578,7 +1578,8 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
 #: review32c F3 (cat_outlier_20010, its own generator): chips of 11.5, 18.5, 12.3 um on rows 19, 26 (set-up S1) and
 #: 96 (S3); S3's step fitted row 96 exactly (leverage >= 0.99, unjudged) and S3's other touches saw a step (p 2.4e-5,
 #: 0.0017 after Bonferroni against 0.0025: :data:`SLIP_UNJUDGED_BY_OTHERS`), so S1's two chips, which no step
-#: explained, were kept too and the report read a confident `unexplained`. Session 32, docs/discovery-studies.md, "Session 32: a slip explains its own set-up's outliers".
+#: explained, were kept too and the report read a confident `unexplained`. Session 32, docs/discovery-studies.md,
+#: "Session 32: a slip explains its own set-up's outliers".
 #: **Off since session 32's end** (the lead): the fresh clone's full suite found a cost slip32's 730 tuning campaigns
 #: did not hold: gen_a knock 1085 (out of the catalogue; tests/core/test_discover_misses.py) reads `unexplained`
 #: without it, the right reading, and `outlier?` with it (one touch of another set-up set aside beside the knock's
