@@ -3608,11 +3608,12 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
     # part's): those reading less material than the fit are no particle (:func:`_workpiece`'s ``beside_kept``)
     shared = _outliers_beside_kept(bl, outliers, rows) if OUTLIER_BELOW_KEPT and outliers.size else None
     named_shift = {}
-    # the hedged named causes whose own term's shift is tested and carried (HEDGED_SHIFT_CARRIED)
+    # the named causes whose own term's shift is tested and carried (HEDGED_SHIFT_CARRIED): the hedged ones, the
+    # hedged inflated ones, or every inflated one
+    hedged_names = {f.cause for f in findings if f.evidence.get("confidence") == "ambiguous"}
     without = {f.cause for f in findings if HEDGED_SHIFT_CARRIED and (
-        (HEDGED_SHIFT_CARRIED == "inflated_any" and _beyond_vif_max(f.evidence, settings))
-        or (f.evidence.get("confidence") == "ambiguous"
-            and (HEDGED_SHIFT_CARRIED == "hedged" or _beyond_vif_max(f.evidence, settings))))}
+        f.cause in hedged_names if HEDGED_SHIFT_CARRIED == "hedged" else
+        _beyond_vif_max(f.evidence, settings) and (HEDGED_SHIFT_CARRIED == "inflated_any" or f.cause in hedged_names))}
     wp, ident, Gb, Ge, cGb, cGe, shift = _workpiece(
         bl, terms, y, rows, st0, st, settings.alpha_family, form if form is not None and form.size else None,
         alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED else None, beside_kept=shared, named=named_shift,
@@ -3680,7 +3681,6 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         f"real, and the split of {split} "
                         "assumption: the extended U95 carries the shift (u = |shift| / 2 per target)"
                         if shift["carried_in_u95"] else "within the noise the extended U95 already carries"))
-    hedged_names = {f.cause for f in findings if f.evidence.get("confidence") == "ambiguous"}
     for c, fig in named_shift.items():
         if fig.get("form") and fig["carried_in_u95"]:
             conv.append(f"{c}'s form has a direction inflated beyond vif_max = {settings.vif_max:g}; "
