@@ -698,7 +698,7 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
     e = res.value(f"E{a}{a}", x)
     nom = (x + joint_offset_m) / MM
     act = nom + e / MM
-    return "".join(f"{u:.6f} {v:.6f} {v:.6f}\n" for u, v in zip(nom, act))
+    return comp_text(np.column_stack([nom, act, act]))
 
 
 def positioning_comp_file(test) -> str:
@@ -739,7 +739,7 @@ def positioning_comp_file(test) -> str:
     nom = np.asarray(t.targets, float) + float(t.joint_offset)
     fwd = nom + np.nanmean(t.dev_up, axis=1)
     rev = nom + np.nanmean(t.dev_down, axis=1)
-    return "".join(f"{u:.6f} {v:.6f} {w:.6f}\n" for u, v, w in zip(nom, fwd, rev))
+    return comp_text(np.column_stack([nom, fwd, rev]))
 
 
 def add_comp(old_rows, residual_rows) -> np.ndarray:
