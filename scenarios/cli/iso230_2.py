@@ -109,4 +109,6 @@ def run(args) -> int:
 #: What `--comp-file` prints (review32a F2): how LinuxCNC takes the file, where it would undo a correction.
 COMP_FILE_NOTE = ("replaces the joint's BACKLASH and any earlier COMP_FILE in LinuxCNC (one table per joint, "
                   "BACKLASH unused with it): it is right for a test made with both off; a test made with a table "
-                  "loaded measured its residual: write --comp-file with --add-to OLD.comp")
+                  "loaded measured its residual: write --comp-file with --add-to OLD.comp. Like any per-joint table "
+                  "it is exact on the line the test was measured along (the other axes where they stood), not "
+                  "elsewhere where the axis's angular errors have an Abbe arm (README 'Compensation files')")
