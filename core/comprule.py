@@ -125,13 +125,70 @@ def tip_map(state: MachineState, chain: str, P, J_m=(0.0, 0.0, 0.0), rotary_poin
     return G - Q @ (Q.T @ G)
 
 
-def predicted_residual(state: MachineState, factors: dict, G: np.ndarray) -> dict:
-    """What compensating ``factors`` (symbol -> fraction applied; absent: 0) of ``state`` is predicted
-    to leave at the points of ``G`` (:func:`tip_map`): ``residual`` (n, 3) m, the estimate of what is not
-    applied, ``(1 - l) e^``; ``U95`` (n, 3) m, 2 sqrt of the diagonal of ``G cov G^T`` (every term's
-    estimate is uncertain, whether its error is what the compensation leaves or is left whole);
-    ``U95_added`` (n, 3) m, the same of ``G L cov L G^T``: what the applied part may add (module doc).
+def line_map(state: MachineState, chain: str, axis: str, x_m, point_m, J_m=(0.0, 0.0, 0.0),
+             rotary_points_R_m=None, ref_m: float | None = None, step: float = 1e-6) -> np.ndarray:
+    """(k, p) d/d parameters of ``axis``'s component of the tool-tip deviation along ``axis``'s line.
+
+    The line: the readings ``point_m`` (3,) m of the other two axes (``point_m``'s own entry of ``axis`` is
+    not used), ``axis`` at the axis (joint) positions ``x_m`` (k,) m, i.e. readings ``x_m - J``; rotary axes
+    at 0. A per-axis compensation table (LinuxCNC's, one value per joint position) that corrects this
+    component is exact on that line and nowhere else where the errors depend on the other axes' positions
+    (an angular error's Abbe arm, the other axes' straightness and squareness: module doc of
+    :func:`line_table`). With ``ref_m`` each row is taken relative to the line's point at the axis position
+    ``ref_m`` (the gauge of a positioning table: zero at its first node; a constant along the axis moves
+    the whole work volume, which touching off the part's datum absorbs).
+
+    Columns as :func:`tip_map`'s (one parameter of ``state`` moved by ``step`` through
+    :func:`core.kinematics.tip_W`, divided by it: first order, the chain's second order ~ step x arm).
     """
+    a = axis.upper() if isinstance(axis, str) else axis
+    if a not in iso.LINEAR_AXES:
+        raise ConfigError(f"line_map: axis must be X, Y or Z, got {axis!r}")
+    i = iso.LINEAR_AXES.index(a)
+    x = np.atleast_1d(np.asarray(x_m, float))
+    pt = np.asarray(point_m, float)
+    if x.ndim != 1 or not np.isfinite(x).all() or pt.shape != (3,) or not np.isfinite(pt).all():
+        raise ConfigError("line_map: x_m must be finite (k,) and point_m three finite readings")
+    xs = x if ref_m is None else np.r_[x, float(ref_m)]
+    geom = ChainGeometry.of(chain, J_m, rotary_points_R_m)
+    P = np.tile(pt, (len(xs), 1))
+    P[:, i] = xs - geom.J_m[i]
+    nr = len(geom.chain.rotary_axes)
+    rot = None if not nr else np.zeros((len(P), nr))
+    base = tip_W(geom, P, rot, None)[:, i]
+    M = np.zeros((len(P), len(state.mean)))
+    zeros = np.zeros(len(P))
+    for s, (nodes, idx) in state.tables.items():
+        b = iso.LINEAR_AXES.index(iso.symbol(s).axis)
+        W = spline_weights(nodes, P[:, b] + geom.J_m[b])
+        for k, j in enumerate(np.atleast_1d(idx)):
+            M[:, j] = (tip_W(geom, P, rot, {s: step * W[:, k]})[:, i] - base) / step
+    for s, j in state.constants.items():
+        M[:, j] = (tip_W(geom, P, rot, {s: zeros + step})[:, i] - base) / step
+    return M if ref_m is None else M[:-1] - M[-1]
+
+
+def applied_mean(state: MachineState, factors: dict) -> np.ndarray:
+    """(p,) the part of ``state.mean`` a compensation applies: each symbol's values times its factor
+    (``factors``: symbol -> fraction, 0 to 1; absent: 0)."""
+    return _lam(state, factors) * state.mean
+
+
+def line_table(state: MachineState, factors: dict, chain: str, axis: str, x_m, point_m, J_m=(0.0, 0.0, 0.0),
+               rotary_points_R_m=None, ref_m: float | None = None) -> np.ndarray:
+    """(k,) m: what a per-axis table on ``axis``'s line through ``point_m`` holds at the axis positions ``x_m``.
+
+    The applied part of the estimate (:func:`applied_mean`) through :func:`line_map`: ``axis``'s component
+    of the tool-tip deviation relative to the workpiece (ISO 230-1) along the line, zero at ``ref_m``. It is
+    the positioning error ``E<axis><axis>`` plus, for X on a line at readings (y, z), the Abbe terms of X's
+    own pitch and yaw (``EBX z - ECX y`` on a tool-side chain), the other axes' errors at that point being
+    constants along the line: at readings 0 of the other two axes (zero Abbe arms) the table is
+    ``E<axis><axis>`` itself, to the chain's second order.
+    """
+    return line_map(state, chain, axis, x_m, point_m, J_m, rotary_points_R_m, ref_m) @ applied_mean(state, factors)
+
+
+def _lam(state: MachineState, factors: dict) -> np.ndarray:
     unknown = set(factors) - set(state.symbols)
     if unknown:
         raise ConfigError(f"predicted_residual: {sorted(unknown)} not in the estimate")
@@ -141,9 +198,36 @@ def predicted_residual(state: MachineState, factors: dict, G: np.ndarray) -> dic
         if not 0.0 <= f <= 1.0:
             raise ConfigError(f"predicted_residual: {s}: factor {f!r} not in [0, 1]")
         lam[np.atleast_1d(state.tables[s][1] if s in state.tables else state.constants[s])] = f
-    r = G @ ((1.0 - lam) * state.mean)
+    return lam
+
+
+def rigid_projected(A, P) -> np.ndarray:
+    """(3n, p) ``A`` (x/y/z interleaved rows at the points P (n, 3)) with the rigid motions of P projected
+    off, as :func:`tip_map`'s columns are."""
+    Q, _ = np.linalg.qr(_rigid_basis(np.atleast_2d(np.asarray(P, float))))
+    return A - Q @ (Q.T @ A)
+
+
+def predicted_residual(state: MachineState, factors: dict, G: np.ndarray, applied: np.ndarray | None = None) -> dict:
+    """What compensating ``factors`` (symbol -> fraction applied; absent: 0) of ``state`` is predicted
+    to leave at the points of ``G`` (:func:`tip_map`): ``residual`` (n, 3) m, the estimate of what is not
+    applied, ``(1 - l) e^``; ``U95`` (n, 3) m, 2 sqrt of the diagonal of ``G cov G^T`` (every term's
+    estimate is uncertain, whether its error is what the compensation leaves or is left whole);
+    ``U95_added`` (n, 3) m, the same of ``G L cov L G^T``: what the applied part may add (module doc).
+
+    ``applied`` (3n, p), optional: the compensation's own displacement per parameter at the same points
+    (rigid motions projected off as ``G``'s), when it is not the tip deviation itself: per-axis tables on
+    lines (:func:`line_map` at each point's axis positions; a table corrects only its axis's component, and
+    as it is on its line wherever the other axes are). Then ``residual = G e^ - applied L e^`` and
+    ``U95_added`` is of ``applied L cov L applied^T``; default ``G`` (each error corrected where it acts).
+    """
+    lam = _lam(state, factors)
+    A = G if applied is None else applied
+    if A.shape != G.shape:
+        raise ConfigError(f"predicted_residual: applied map of shape {A.shape}, expected {G.shape}")
+    r = G @ ((1.0 - lam) * state.mean) if applied is None else G @ state.mean - A @ (lam * state.mean)
     GF = G @ state.factor
-    GLF = G @ (lam[:, None] * state.factor)
+    GLF = A @ (lam[:, None] * state.factor)
     U = 2.0 * np.sqrt(np.einsum("ij,ij->i", GF, GF))
     Ua = 2.0 * np.sqrt(np.einsum("ij,ij->i", GLF, GLF))
     return {"residual": r.reshape(-1, 3), "U95": U.reshape(-1, 3), "U95_added": Ua.reshape(-1, 3)}

@@ -623,7 +623,7 @@ COMP_SIZE = 256
 
 
 def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float = 0.0,
-              range_m: tuple | None = None) -> str:
+              range_m: tuple | None = None, error=None) -> str:
     """LinuxCNC per-joint compensation file (``COMP_FILE_TYPE = 0``) for the positioning error of ``axis``.
 
     LinuxCNC documents TYPE 0 lines as ``nominal forward reverse`` in machine
@@ -666,6 +666,12 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
         the first node is the gauge zero (trim 0): below it the joint would
         be left uncompensated while the JSON extrapolates (review29b F1).
         Default: the table's nodes only.
+    error : callable, optional
+        ``error(x) -> (k,)``: the error the file carries at the axis positions
+        ``x`` (k,) m, instead of the identified ``E<axis><axis>`` (its value on
+        the line through readings 0 of the other axes): the axis's error along
+        another line of the work volume (:func:`core.comprule.line_table`;
+        ``vmt scenario --comp-line-mm``). The same lines and format.
 
     Returns
     -------
@@ -695,7 +701,9 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
         x = np.r_[[lo] if lo < x[0] - 1e-6 else [], x, [hi] if hi > x[-1] + 1e-6 else []]
     if len(x) > COMP_SIZE:
         raise ConfigError(f"comp_file: {len(x)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
-    e = res.value(f"E{a}{a}", x)
+    e = res.value(f"E{a}{a}", x) if error is None else np.asarray(error(x), float)
+    if e.shape != x.shape or not np.all(np.isfinite(e)):
+        raise ConfigError(f"comp_file: the error of {a} must be {len(x)} finite values, got shape {e.shape}")
     nom = (x + joint_offset_m) / MM
     act = nom + e / MM
     return comp_text(np.column_stack([nom, act, act]))

@@ -1186,7 +1186,7 @@ class ScenarioResult:
     #: (:func:`describe_comp_line`)
     J_m: tuple = field(default=None, compare=False)
 
-    def write_comp(self, directory) -> list:
+    def write_comp(self, directory, line_m=None) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
 
         ``<dir>/<X|Y|Z>.comp`` (``[JOINT_n] COMP_FILE``, ``COMP_FILE_TYPE =
@@ -1204,6 +1204,12 @@ class ScenarioResult:
         (controllers apply ``applied_factor`` times the table,
         :func:`core.volumetric.comp_tables`), the rule, and the residual
         predicted over the node box with its U95.
+
+        ``line_m`` (3,) readings, m (``vmt scenario --comp-line-mm``): each ``.comp`` file carries its axis's
+        error along the line through this point instead (X.comp along X at its Y and Z, ...; each file's
+        own axis's entry unused; :func:`comp_line_tables`), exact there; the JSON gets ``per_axis_line``
+        and its ``predicted_residual.per_axis_files`` is of those tables. Default: ``E<a><a>``, the line
+        through readings 0 (:func:`describe_comp_line`).
         """
         import json
         from dataclasses import replace as _rep
@@ -1213,7 +1219,7 @@ class ScenarioResult:
         from core.atomic import write_text_atomic
         from hardware.linuxcnc import comp_file
 
-        plan = compensation_plan(self)
+        plan = compensation_plan(self, line_m)
         dec = plan["terms"]
         res, slopes = self.result, dict(self.slopes or {})
         theta = np.array(res.theta, float)
@@ -1226,9 +1232,10 @@ class ScenarioResult:
         d.mkdir(parents=True, exist_ok=True)
         out = []
         strokes = self.strokes_m or {}
+        errors = {} if line_m is None else comp_line_tables(self, line_m, plan["terms"])
         for a in ("X", "Y", "Z"):
             out.append(write_text_atomic(d / f"{a}.comp", comp_file(res_applied, a, step_m=0.005,
-                                                                     range_m=strokes.get(a))))
+                                                                     range_m=strokes.get(a), error=errors.get(a))))
         doc = json.loads(vol.tables_json(self.result, self.unc, self.slopes))
         doc.update(compensation_range(self.plan.nodes, strokes))
         for s, e in doc["errors"].items():
@@ -1236,6 +1243,8 @@ class ScenarioResult:
             e["decision"] = {k: v for k, v in dec[s].items() if k != "factor"}
         doc["applied_rule"] = plan["rule"]
         doc["predicted_residual"] = plan["predicted_residual"]
+        if line_m is not None:
+            doc["per_axis_line"] = comp_line_doc(line_m)
         out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json", json.dumps(doc, indent=1)))
         return [Path(p) for p in out]
 
@@ -1271,23 +1280,36 @@ COMP_FILES_REPLACE = ("the .comp files replace each joint's BACKLASH and any ear
                       "(README, 'Compensation files')")
 
 
-def describe_comp_line(nodes, J_m) -> str:
-    """Where the per-axis ``.comp`` files are exact (review32a F4): each carries its axis's positioning error
-    ``E<a><a>`` of vmt's model, the error on the line through readings 0 of the other two axes (zero Abbe
-    arms); elsewhere the angular errors' Abbe terms stay. ``nodes``: axis -> node positions (axis positions,
-    m); ``J_m``: the machine's probe offset (reading = axis position - J). Says which lines miss the node box."""
+def describe_comp_line(nodes, J_m, point_m=None) -> str:
+    """Where the per-axis ``.comp`` files are exact (review32a F4). By default each carries its axis's
+    positioning error ``E<a><a>`` of vmt's model, the error on the line through readings 0 of the other two
+    axes (zero Abbe arms); with ``point_m`` (3,) readings, m (``--comp-line-mm``) the error along the lines
+    through that point (:func:`comp_line_tables`). Elsewhere the angular errors' Abbe terms (and the other
+    axes' errors that vary across the lines) stay. ``nodes``: axis -> node positions (axis positions, m);
+    ``J_m``: the machine's probe offset (reading = axis position - J). Says which lines miss the node box,
+    and the box's centre in readings (a line through it: ``--comp-line-mm``)."""
     J = np.asarray(J_m, float)
+    pt = np.zeros(3) if point_m is None else np.asarray(point_m, float)
     box = {a: (float(nodes[a][0]) - J[i], float(nodes[a][-1]) - J[i]) for i, a in enumerate("XYZ")}
     out = []
     for a in "XYZ":
         others = [b for b in "XYZ" if b != a]
-        miss = [b for b in others if not box[b][0] - 1e-9 <= 0.0 <= box[b][1] + 1e-9]
+        miss = [b for b in others if not box[b][0] - 1e-9 <= pt["XYZ".index(b)] <= box[b][1] + 1e-9]
         where = (" outside the node box (" + ", ".join(f"{b} readings {box[b][0] * 1e3:.0f}..{box[b][1] * 1e3:.0f} "
                                                           "mm" for b in miss) + ")") if miss else ""
-        out.append(f"{a}.comp on {' = '.join(others)} = 0{where}")
-    return ("the per-axis .comp files are right only on their axis's line through readings 0 of the other axes "
-            "(zero Abbe arms): " + "; ".join(out) + "; elsewhere the angular errors' Abbe terms remain (the "
-            "vmt-comp/1 JSON corrects them volumetrically; closed_loop measures what the files leave)")
+        if point_m is None:
+            out.append(f"{a}.comp on {' = '.join(others)} = 0{where}")
+        else:
+            out.append(f"{a}.comp on " + ", ".join(f"{b} = {pt['XYZ'.index(b)] * 1e3:g}" for b in others) + where)
+    centre = ",".join(f"{(box[a][0] + box[a][1]) / 2 * 1e3:g}" for a in "XYZ")
+    head = ("the per-axis .comp files are right only on their axis's line through readings 0 of the other axes "
+            "(zero Abbe arms): " if point_m is None else
+            "the per-axis .comp files carry each axis's error along its line through the readings "
+            + ",".join(f"{v * 1e3:g}" for v in pt) + " mm (--comp-line-mm), right only there: ")
+    return (head + "; ".join(out) + "; elsewhere the errors that depend on the other axes' positions remain (the "
+            "angular errors' Abbe terms: the vmt-comp/1 JSON corrects them volumetrically; closed_loop measures "
+            f"what the files leave); the node box's centre is at readings {centre} mm (--comp-line-mm X,Y,Z "
+            "chooses the lines' point)")
 
 
 def _node_box(nodes) -> np.ndarray:
@@ -1296,20 +1318,63 @@ def _node_box(nodes) -> np.ndarray:
     return np.stack(np.meshgrid(gx, gy, gz, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
-def _prediction(r: "ScenarioResult", factors: dict) -> dict:
+def _prediction(r: "ScenarioResult", factors: dict, line_m=None) -> dict:
     """What compensating ``factors`` (symbol -> fraction applied) of ``r``'s estimate is predicted to
     leave over ``r``'s node box (:func:`core.comprule.predicted_residual`, stylus :data:`COMP_STYLUS`,
-    a rigid motion removed): ``residual``, ``U95``, ``U95_added``, each (n, 3) m."""
-    from core.comprule import predicted_residual, tip_map
+    a rigid motion removed): ``residual``, ``U95``, ``U95_added``, each (n, 3) m. ``line_m``: the
+    compensation is per-axis tables on the lines through that point (readings, m; :func:`comp_line_tables`):
+    each point gets each table's value at its axis position, along that axis only."""
+    from core.comprule import line_map, predicted_residual, rigid_projected, tip_map
     from core.state import loads_estimate
 
     state = loads_estimate(r.doc["estimate"])
     J = np.asarray(STYLI[COMP_STYLUS], float)  # the node box is of axis positions: the readings are less J
-    G = tip_map(state, r.result.chain, _node_box(r.plan.nodes) - J, J, r.result.rotary_points_R_m)
-    return predicted_residual(state, factors, G)
+    P = _node_box(r.plan.nodes) - J
+    G = tip_map(state, r.result.chain, P, J, r.result.rotary_points_R_m)
+    if line_m is None:
+        return predicted_residual(state, factors, G)
+    A = np.zeros_like(G)
+    for i, a in enumerate("XYZ"):
+        x, where = np.unique(P[:, i] + J[i], return_inverse=True)
+        A[i::3] = line_map(state, r.result.chain, a, x, line_m, J, r.result.rotary_points_R_m,
+                           ref_m=float(r.plan.nodes[a][0]))[where]
+    return predicted_residual(state, factors, G, applied=rigid_projected(A, P))
 
 
-def compensation_plan(r: "ScenarioResult") -> dict:
+def comp_line_tables(r: "ScenarioResult", line_m, terms: dict | None = None) -> dict:
+    """axis -> ``error(x)`` for :func:`hardware.linuxcnc.comp_file`: the axis's error along its line through
+    ``line_m`` (3,) readings of the stylus :data:`COMP_STYLUS`, m (:func:`core.comprule.line_table`), of
+    the part of ``r``'s estimate the compensation applies (``terms``: :func:`compensation_plan`'s), zero at
+    the axis's first node (the identified positioning error's gauge). Exact on the line to the chain's
+    second order; at readings 0 it is ``E<a><a>``, the default files' table."""
+    from core.comprule import line_table
+    from core.state import loads_estimate
+
+    state = loads_estimate(r.doc["estimate"])
+    terms = compensation_plan(r)["terms"] if terms is None else terms
+    factors = {s: d["factor"] for s, d in terms.items()}
+    J = tuple(STYLI[COMP_STYLUS])
+    pt = np.asarray(line_m, float)
+
+    def table(a):
+        return lambda x: line_table(state, factors, r.result.chain, a, x, pt, J, r.result.rotary_points_R_m,
+                                    ref_m=float(r.plan.nodes[a][0]))
+    return {a: table(a) for a in "XYZ"}
+
+
+def comp_line_doc(line_m) -> dict:
+    """The compensation JSON's ``per_axis_line`` (``vmt scenario --comp-line-mm``): where the ``.comp`` files
+    are exact."""
+    return {"readings_mm": [float(v) * 1e3 for v in line_m], "stylus": COMP_STYLUS,
+            "meaning": "each .comp file carries its axis's component of the tool-tip error (the applied part of the "
+                       "estimate) along its axis's line through this point: X.comp along X at this Y and Z, "
+                       "Y.comp along Y at this X and Z, Z.comp along Z at this X and Y (readings: stylus-tip "
+                       "centre in R, mm), zero at the axis's first node; exact on those lines, elsewhere the "
+                       "errors that depend on the other axes' positions (Abbe terms, straightness, squareness) "
+                       "remain"}
+
+
+def compensation_plan(r: "ScenarioResult", line_m=None) -> dict:
     """How much of each error ``r``'s compensation applies and what it is predicted to leave.
 
     ``terms``: :func:`core.comprule.select_terms` of ``r``'s estimate (``doc["estimate"]``, the
@@ -1317,7 +1382,8 @@ def compensation_plan(r: "ScenarioResult") -> dict:
     ``predicted_residual``: over the plan's node box, a rigid motion removed, per axis X/Y/Z the
     largest predicted |residual|, the largest U95 of what is left and the largest U95 the applied
     part adds (a machine without errors: the compensation's whole effect), um, for the volumetric
-    table and for the per-axis files (EXX, EYY, EZZ alone).
+    table and for the per-axis files (EXX, EYY, EZZ alone; with ``line_m``, readings m, their tables on
+    the lines through that point, :func:`comp_line_tables`).
     """
     from core.comprule import select_terms
     from core.state import loads_estimate
@@ -1325,8 +1391,9 @@ def compensation_plan(r: "ScenarioResult") -> dict:
     dec = select_terms(loads_estimate(r.doc["estimate"]))
     factors = {s: d["factor"] for s, d in dec.items()}
     pred = {}
-    for key, fs in (("volumetric", factors), ("per_axis_files", {s: factors[s] for s in ("EXX", "EYY", "EZZ")})):
-        p = _prediction(r, fs)
+    per_axis = {s: factors[s] for s in ("EXX", "EYY", "EZZ")} if line_m is None else factors
+    for key, fs, line in (("volumetric", factors, None), ("per_axis_files", per_axis, line_m)):
+        p = _prediction(r, fs, line)
         pred[key] = {a: {"max_abs_um": float(np.abs(p["residual"][:, i]).max() * 1e6),
                          "u95_max_um": float(p["U95"][:, i].max() * 1e6),
                          "u95_added_max_um": float(p["U95_added"][:, i].max() * 1e6)} for i, a in enumerate("XYZ")}
@@ -2055,6 +2122,34 @@ def true_positioning_m(machine, nodes) -> dict:
     return out
 
 
+def line_positioning_m(machine, nodes, point_m) -> dict:
+    """The machine's exact error along each axis's line through ``point_m`` (3,) readings, m (sim): axis a's
+    reading moved over its nodes (axis positions, less the machine's J), the other two at ``point_m``'s, rotary
+    axes at 0: the tip deviation's a component, minus its value at the first node (what a per-axis table on
+    that line corrects, :func:`comp_line_tables`). ``machine`` with the compensation's stylus."""
+    J = np.asarray(machine.config.J_m, float)
+    out = {}
+    for i, a in enumerate("XYZ"):
+        x = np.asarray(nodes[a], float)
+        lin = np.tile(np.asarray(point_m, float), (len(x), 1))
+        lin[:, i] = x - J[i]
+        rot = None if not machine.rotary_axes else np.zeros((len(x), len(machine.rotary_axes)))
+        d = np.asarray(machine.tip_W(lin, rot), float)[:, i] - lin[:, i]
+        out[a] = d - d[0]
+    return out
+
+
+def _line_in(directory, name: str):
+    """The ``per_axis_line`` point of the compensation in ``directory`` (readings, m; its JSON's
+    ``readings_mm``), or None: the default files, on the lines through readings 0."""
+    import json
+    from pathlib import Path
+
+    pj = Path(directory) / f"{name}-comp.json"
+    line = json.loads(pj.read_text()).get("per_axis_line") if pj.is_file() else None
+    return None if line is None else np.asarray(line["readings_mm"], float) * MM
+
+
 def stroke_grid(nodes, strokes_m: dict) -> dict:
     """axis -> the nodes continued at their end spacings out to the strokes (axis positions, m; the
     stroke ends included, a point closer than half a spacing to one dropped): the closed loop's grid
@@ -2134,7 +2229,7 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, p
         e = r.doc["errors"][f"E{a}{a}"]
         return np.asarray(e.get("u95", [np.nan] * len(e["identified"])), float)
 
-    def block(r, comp=None, applied=None):
+    def block(r, comp=None, applied=None, pred_line=None):
         pos = {}
         true = true_positioning_m(truth((0.0, 0.0, 0.0), comp), r.plan.nodes)
         for a in "XYZ":
@@ -2149,16 +2244,20 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, p
                 pos[a]["identified_within_u95"] = f"{int(np.sum(ident <= u_now))}/{len(ident)}"
         m = truth(STYLI[COMP_STYLUS], comp)
         out = {"positioning": pos, "volumetric_residual_um": volumetric_residual_um(m, r.plan.nodes)}
+        on = line_positioning_m(m, r.plan.nodes, np.zeros(3) if line is None else line)
+        out["on_comp_line"] = {"readings_mm": [0.0, 0.0, 0.0] if line is None else [float(v) / MM for v in line],
+                               "max_abs_um": {a: float(np.abs(on[a]).max() * 1e6) for a in "XYZ"}}
         if before.strokes_m:  # beyond the node box, out to the strokes: the extrapolation checked (F1)
             out["strokes"] = stroke_residual_um((truth((0.0, 0.0, 0.0), comp), m), r.plan.nodes, before.strokes_m)
         if applied is not None:  # the exact volumetric error against the one predicted from `before`
             out["volumetric_check"] = volumetric_check(R_before, _volumetric_deviation(m, r.plan.nodes),
-                                                       _prediction(before, applied))
+                                                       _prediction(before, applied, pred_line))
             out["applied_factor"] = dict(applied)
         return out
 
     R_before = _volumetric_deviation(truth(STYLI[COMP_STYLUS]), before.plan.nodes)
     applied = _applied_in(directory, name)
+    line = _line_in(directory, name)
 
     doc = {"format": CLOSED_LOOP_FORMAT, "scenario": name, "directory": str(directory), "seed_before": seed,
            "seed_after": seed + 1,
@@ -2171,7 +2270,9 @@ def closed_loop(name: str, directory, before: ScenarioResult | None = None, *, p
     for i, (key, comp) in enumerate(ctl.items()):
         each = None if progress is None else (lambda k, n, i=i: progress(i * n + k, len(ctl) * n))
         r = run(name, seed=seed + 1, bar_seed=seed, compensate=comp, progress=each, **kw)
-        doc[key] = block(r, comp, applied if key == "volumetric" else {s: applied[s] for s in ("EXX", "EYY", "EZZ")})
+        doc[key] = block(r, comp, applied if key == "volumetric" or line is not None
+                         else {s: applied[s] for s in ("EXX", "EYY", "EZZ")},
+                         line if key == "per_axis_files" else None)
     return doc
 
 

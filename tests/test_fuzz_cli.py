@@ -360,7 +360,7 @@ def argv_case(rng, b, out: Path) -> list:
             a += ["--units", pick(["mm", "inch", "m"])]
         return a
     if cmd == 4:        # design: small searches only (step >= 90 deg, <= 3 angles)
-        a = ["design", pick([str(b["plan"]), str(b["log"]), str(d / "folder"), str(d / "missing.csv")]),
+        a = ["design", "--plan", pick([str(b["plan"]), str(b["log"]), str(d / "folder"), str(d / "missing.csv")]),
              "--n-angles", pick(["2", "3", "0", "1", "-1", "2.5", "x", "1000"]),
              "--step-deg", pick(["90", "120", "180", "0", "-5", "nan", "inf", "7", "abc", "1e-9", "400"]),
              "--workers", "1"]
@@ -451,7 +451,7 @@ def test_real_process_exit_status_and_one_line(base, tmp_path):
     for argv in (["check", str(bad)],
                  ["identify", str(base["log"]), "--json", "/dev/full"],
                  ["import", "linuxcnc", str(base["lcnc"]), "--plan", str(base["plan"]), "--out", str(base["plan"])],
-                 ["design", str(base["plan"]), "--n-angles", "3", "--step-deg", "0"]):
+                 ["design", "--plan", str(base["plan"]), "--n-angles", "3", "--step-deg", "0"]):
         r = _vmt(*argv)
         assert r.returncode == 2, (argv, r.stderr)
         assert r.stderr.count("\n") == 1 and r.stderr.startswith(f"vmt {argv[0]}: error: "), (argv, r.stderr)

@@ -1,4 +1,4 @@
-"""``vmt design PLAN --n-angles N``: choose C angles minimising the workpiece uncertainty (core.design)."""
+"""``vmt design --plan PLAN --n-angles N``: choose C angles minimising the workpiece uncertainty (core.design)."""
 
 from __future__ import annotations
 
@@ -15,8 +15,9 @@ GRID_DEFAULT = "22"
 
 def register(sub) -> None:
     p = sub.add_parser("design", help="choose the C angles of a 2D self-calibration (min max workpiece U95)")
-    p.add_argument("plan", help="probe-log/1 plan or campaign with wx_mm.. and wnx.. (targets in W)")
-    from scenarios.cli.options import GRID_HELP, add_noise_arg, option
+    from scenarios.cli.options import GRID_HELP, add_noise_arg, add_plan_arg, option
+
+    add_plan_arg(p, "probe-log/1 plan or campaign with wx_mm.. and wnx.. (targets in W)")
 
     option(p, "--n-angles", dest="angles", type=int, required=True, old=("--angles",), help="number of C angles")
     p.add_argument("--grid-mm", default=GRID_DEFAULT, metavar="STEP|x0:x1:step",

@@ -149,6 +149,17 @@ class OneLineParser(argparse.ArgumentParser):
         # a required option with an old name (scenarios.cli.options.option) is required here, not by
         # argparse: either name satisfies it
         ns, rest = super().parse_known_args(args, namespace)
+        # an old positional spelling of an option (scenarios.cli.options.add_plan_arg): moved over, said once
+        for old, dest, shown, new in getattr(self, "vmt_positional_renamed", ()):
+            v = getattr(ns, old, None)
+            if v is None:
+                continue
+            if getattr(ns, dest, None) is not None:
+                self.error(f"{shown} given twice: as {new} and as an argument (the old spelling); give {new} only")
+            print(f"vmt: {shown} as a positional argument is renamed to {new} {shown} (the old spelling works for "
+                  "now; use the new one)", file=sys.stderr, flush=True)
+            setattr(ns, dest, v)
+            setattr(ns, old, None)
         missing = [name for dest, name in getattr(self, "vmt_required", ()) if getattr(ns, dest, None) is None]
         if missing:
             self.error(f"the following arguments are required: {', '.join(missing)}")
@@ -165,13 +176,8 @@ def _arg_paths(args, names) -> dict:
     return out
 
 
-#: commands whose plan is a positional argument (elsewhere ``--plan``)
-PLAN_POSITIONAL = ("design", "vcmm")
-
-
 def _opt(name: str, command: str | None = None) -> str:
-    if name == "plan" and command in PLAN_POSITIONAL:
-        return "PLAN"
+    """How the command line names the argument ``name`` (an ``args`` attribute) of ``command``."""
     return {"json_out": "--json", "log": "LOG", "plan": "--plan", "file": "FILE", "rrd": "RRD",
             "c_angles": "--c-angles-deg", "study": "STUDY"}.get(name, "--" + name.replace("_", "-"))
 

@@ -19,8 +19,12 @@ def register(sub) -> None:
     p.add_argument("log", help="positioning-log/1 CSV, ecmc .dat, or a table of target, cycle, direction, measured")
     p.add_argument("--json", required=True, metavar="OUT", help="JSON report to write (atomically)")
     p.add_argument("--report", help="folder for a readable report (index.html, the standard's plot)")
-    p.add_argument("--from", dest="kind", choices=("auto", "log", "ecmc", "table"), default="auto",
-                   help="what LOG is (auto: '# format:' line -> log, TGT_DATA[ -> ecmc, else table)")
+    from scenarios.cli.options import option
+
+    # --from until session 33: one name with two meanings beside bench's --from-json FILE and machine program's
+    # --from-row K (review32d F9); the old name works and says the new one
+    option(p, "--log-kind", dest="kind", choices=("auto", "log", "ecmc", "table"), default="auto", old=("--from",),
+           metavar=None, help="what LOG is (auto: '# format:' line -> log, TGT_DATA[ -> ecmc, else table)")
     p.add_argument("--write-log", metavar="LOG", help="also write the readings as positioning-log/1")
     p.add_argument("--comp-file", metavar="COMP",
                    help="also write a LinuxCNC compensation table (COMP_FILE_TYPE 0: nominal forward reverse, the "
@@ -105,4 +109,6 @@ def run(args) -> int:
 #: What `--comp-file` prints (review32a F2): how LinuxCNC takes the file, where it would undo a correction.
 COMP_FILE_NOTE = ("replaces the joint's BACKLASH and any earlier COMP_FILE in LinuxCNC (one table per joint, "
                   "BACKLASH unused with it): it is right for a test made with both off; a test made with a table "
-                  "loaded measured its residual: write --comp-file with --add-to OLD.comp")
+                  "loaded measured its residual: write --comp-file with --add-to OLD.comp. Like any per-joint table "
+                  "it is exact on the line the test was measured along (the other axes where they stood), not "
+                  "elsewhere where the axis's angular errors have an Abbe arm (README 'Compensation files')")

@@ -67,6 +67,18 @@ def option(p, name: str, *args, old: tuple[str, ...] = (), **kw) -> argparse.Act
     return a
 
 
+def add_plan_arg(p, help: str) -> None:
+    """``--plan PLAN``: the probing plan, one spelling in every command that reads one (``probe``, ``import``,
+    ``machine program``, ``design``, ``vcmm``), required here. ``design`` and ``vcmm`` took it as a positional
+    argument until session 33 (review32d F9): that spelling still works, hidden, and says on stderr in one
+    line that it is now ``--plan`` (:class:`scenarios.cli.guard.OneLineParser` moves it over after parsing)."""
+    p.add_argument("--plan", default=None, metavar="PLAN", help=help + " (required)")
+    p.add_argument("plan_positional", nargs="?", default=None, help=argparse.SUPPRESS)
+    p.vmt_required = (*getattr(p, "vmt_required", ()), ("plan", "--plan"))
+    p.vmt_positional_renamed = (*getattr(p, "vmt_positional_renamed", ()),
+                                ("plan_positional", "plan", "PLAN", "--plan"))
+
+
 def parse_grid(text: str, p_R):
     """``--grid-mm STEP`` (nodes at multiples of STEP covering ``p_R``) or ``x0:x1:step`` (both axes).
 

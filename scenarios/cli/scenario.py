@@ -6,6 +6,8 @@ adding one entry (the lead adds the cross-pocket scenarios here).
 
 from __future__ import annotations
 
+import math
+
 from scenarios.cli.guard import said
 
 
@@ -72,7 +74,8 @@ def _mfb(args) -> int:
 
         print(describe_twists(d["twists"]))
     if args.comp:
-        for p in r.write_comp(args.comp):
+        line = None if args.comp_line_mm is None else comp_line_m(args.comp_line_mm, r)
+        for p in r.write_comp(args.comp, line):
             print(f"wrote {p}")
         from scenarios.mfb import (COMP_FILES_REPLACE, compensation_range, describe_comp_line,
                                    describe_compensation_range)
@@ -80,7 +83,7 @@ def _mfb(args) -> int:
         print(describe_compensation_range(compensation_range(r.plan.nodes, r.strokes_m)))
         print(f"note: {COMP_FILES_REPLACE}")
         if r.J_m is not None:
-            print(f"note: {describe_comp_line(r.plan.nodes, r.J_m)}")
+            print(f"note: {describe_comp_line(r.plan.nodes, r.J_m, line)}")
     if args.apply_comp:
         with progress_line(f"{args.name}: compensated campaigns simulated") as bar:
             loop = closed_loop(args.name, args.apply_comp, before=r, progress=bar, **kw)
@@ -113,6 +116,11 @@ def _mfb(args) -> int:
                         f"{a} {st['positioning_outside_max_um'][a]:.3f} / {st['positioning_inside_max_um'][a]:.3f}"
                         for a in "XYZ") + "; volumetric " + " ".join(
                         f"{a} {st['volumetric_residual_um'][a]:.3f}" for a in "XYZ"))
+        ln = loop["before"]["on_comp_line"]["readings_mm"]
+        print("on the .comp files' lines through readings " + ",".join(f"{v:g}" for v in ln) + " mm (each axis's "
+              "exact error along its line, zero at the first node), max, um: " + "; ".join(
+                  f"{key} " + " ".join(f"{a} {loop[key]['on_comp_line']['max_abs_um'][a]:.3f}" for a in "XYZ")
+                  for key in ("before", "per_axis_files", "volumetric") if key in loop))
         print(f"volumetric error over the node box, um: {'':6s} {'axis':>4s} {'before':>7s} {'after':>7s} "
               f"{'predicted':>9s} {'U95':>6s} {'U95 added':>9s} {'within U95':>10s}  verdict")
         for key in ("per_axis_files", "volumetric"):
@@ -147,6 +155,40 @@ def _mfb(args) -> int:
         write_json_atomic(args.json, d, special=True)
         print(f"wrote {said(args.json)}")
     return 0
+
+
+def parse_comp_line_mm(text: str) -> tuple:
+    """``--comp-line-mm X,Y,Z``: three finite readings, mm, else one line naming the option."""
+    from core.exceptions import ConfigError
+
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ConfigError(f"--comp-line-mm {text!r}: expected three finite numbers X,Y,Z (readings, mm), "
+                          "e.g. 0,100,-50")
+    return v
+
+
+def comp_line_m(text: str, r):
+    """The ``--comp-line-mm`` point in m, each reading within the truth machine's stroke for the
+    compensation's stylus (the lines run through the work volume), else one line naming the axis."""
+    import numpy as np
+
+    from core.exceptions import ConfigError
+    from scenarios.mfb import COMP_STYLUS, STYLI
+
+    v = np.asarray(parse_comp_line_mm(text), float)
+    J = np.asarray(STYLI[COMP_STYLUS], float) / 1e-3
+    for i, a in enumerate("XYZ"):
+        if r.strokes_m and a in r.strokes_m:
+            lo, hi = (w / 1e-3 - J[i] for w in r.strokes_m[a])
+            if not lo - 1e-6 <= v[i] <= hi + 1e-6:
+                raise ConfigError(f"--comp-line-mm {text}: {a} {v[i]:g} mm is beyond the machine's {a} stroke, "
+                                  f"readings {lo:g}..{hi:g} mm (stylus {COMP_STYLUS}): the lines run through the "
+                                  "work volume")
+    return v * 1e-3
 
 
 def _mfb_reversal(args) -> int:
@@ -249,7 +291,14 @@ def register(sub) -> None:
     p.add_argument("--comp", default=None, metavar="DIR",
                    help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here "
                         "(a .comp file replaces the joint's BACKLASH and any earlier COMP_FILE, and is right on its "
-                        "axis's line through readings 0 of the other axes: README 'Compensation files')")
+                        "axis's line through readings 0 of the other axes, or --comp-line-mm's: README 'Compensation files')")
+    p.add_argument("--comp-line-mm", default=None, metavar="X,Y,Z", dest="comp_line_mm",
+                   help="mfb scenarios, with --comp: the point the .comp files' lines pass through, readings "
+                        "(stylus-tip centre, machine frame), mm: X.comp carries X's error along X at this Y and Z "
+                        "(the Abbe terms of X's angular errors there included), Y.comp along Y at this X and Z, "
+                        "Z.comp along Z at this X and Y (each file's own axis's entry unused); exact on those "
+                        "lines only. Default: each file the positioning error EXX, EYY, EZZ, its line through "
+                        "readings 0 (the run prints the node box's centre)")
     p.add_argument("--apply-comp", default=None, metavar="DIR", dest="apply_comp",
                    help="mfb scenarios: apply the compensation in DIR (X/Y/Z.comp as LinuxCNC does, and the "
                         "vmt-comp/1 tables as a volumetric controller) to the virtual machine, re-run, identify "
@@ -289,7 +338,7 @@ def _dispatch(args) -> int:
         ("--machine", args.machine), ("--errors", args.errors), ("--comp", args.comp),
         ("--apply-comp", args.apply_comp), ("--bar-calibration", args.bar_calibration),
         ("--declared-ripple-um-mm", args.declared_ripple), ("--declared-ripple-urad-mm", args.declared_ripple_urad),
-        ("--budget-runs", args.budget_runs or None)))
+        ("--budget-runs", args.budget_runs or None), ("--comp-line-mm", args.comp_line_mm)))
     for opt, v, takers in mfb_only + (("--noise-um", args.noise_um, ("mfb-reversal", "pin-circle")),
                                       ("--mc", args.mc, ("cross-pocket-uncertainty",)),
                                       ("--report", args.report, ("cross-pocket-uncertainty", "pin-circle"))):
@@ -297,6 +346,10 @@ def _dispatch(args) -> int:
             why = " (its probing u is the paper's 1.38 um)" if args.name == "cross-pocket-uncertainty" else ""
             raise ConfigError(f"{opt}: {args.name} does not take it{why}; "
                               f"it is for {', '.join(('mfb-3axis', 'mfb-5axis') + takers)}")
+    if args.comp_line_mm is not None:
+        parse_comp_line_mm(args.comp_line_mm)   # refused before the campaign
+        if not args.comp:
+            raise ConfigError("--comp-line-mm needs --comp DIR: it says where the .comp files written there are exact")
     if args.mc is not None:
         check_mc(args.mc, zero="the linear propagation's U95 alone" if args.name.startswith("mfb-") else None)
     if args.budget_runs and args.budget_runs < 2:

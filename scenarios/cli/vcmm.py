@@ -1,4 +1,4 @@
-"""``vmt vcmm PLAN --machine NAME|FILE --task TASK.toml --json OUT``: the uncertainty of your own measurement.
+"""``vmt vcmm --plan PLAN --machine NAME|FILE --task TASK.toml --json OUT``: the uncertainty of your own measurement.
 
 A virtual CMM (ISO 15530-4): the plan (probe-log/1, nominal points and
 normals) is probed on the machine again and again, each run with the
@@ -19,8 +19,9 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("vcmm", help="Monte Carlo uncertainty of a user's measurands on a machine (virtual CMM)",
                        description=__doc__.split("\n\n")[1])
-    p.add_argument("plan", metavar="PLAN", help="probe-log/1 plan (or log: its nominal columns are used)")
-    from scenarios.cli.options import add_machine_args, add_noise_arg
+    from scenarios.cli.options import add_machine_args, add_noise_arg, add_plan_arg
+
+    add_plan_arg(p, "probe-log/1 plan (or log: its nominal columns are used)")
 
     add_machine_args(p, default=None, required=True,
                      what="the machine, its errors your best estimate (required, unlike simulate's and scenario's "

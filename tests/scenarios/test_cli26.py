@@ -141,7 +141,7 @@ def test_noise_of_identify_and_design_is_refused_in_one_phrasing(tmp_path, rng, 
     """main: --noise-um -1 said 'must be a finite number >= 0', 0 said 'must be > 0' (identify.py, design.py)."""
     log = campaign(tmp_path / "camp.csv", (0, 75, 130, 210), rng)
     for cmd in (["identify", str(log), "--json", str(tmp_path / "i.json")],
-                ["design", str(log), "--n-angles", "3"]):
+                ["design", "--plan", str(log), "--n-angles", "3"]):
         for v in ("-1", "0"):
             assert main(cmd + ["--noise-um", v]) == 2
             one_error_line(capsys, f"vmt {cmd[0]}: error: --noise-um must be a finite number > 0, got {v}\n")
@@ -197,7 +197,8 @@ def identified(tmp_path_factory):
     return log, out
 
 
-VCMM = ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml", "--no-budget"]
+VCMM = ["vcmm", "--plan", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
+        "--no-budget"]
 
 
 def test_identify_records_the_machine_chain_and_height(identified):

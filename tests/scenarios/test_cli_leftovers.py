@@ -243,7 +243,7 @@ def test_output_where_a_file_is_is_refused_before_the_work(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv", [
-    ["design", "{plan}", "--n-angles", "3", "--step-deg", "30", "--json", "{out}"],
+    ["design", "--plan", "{plan}", "--n-angles", "3", "--step-deg", "30", "--json", "{out}"],
     ["scenario", "pin-circle", "--json", "{out}"],
 ])
 def test_json_outputs_are_said(tmp_path, capsys, argv):
@@ -268,7 +268,7 @@ def cross_pocket_plan(path):
 def test_design_error_names_the_plan(tmp_path, capsys):
     """'no choice of 2 C angles on a 90 deg grid identifies the workpiece' named no plan (session 25)."""
     plan = cross_pocket_plan(tmp_path / "plan.csv")
-    assert main(["design", str(plan), "--n-angles", "2", "--step-deg", "90"]) == 2
+    assert main(["design", "--plan", str(plan), "--n-angles", "2", "--step-deg", "90"]) == 2
     err = one_error_line(capsys)
     assert err.startswith(f"vmt design: error: {plan}: no choice of 2 C angles"), err
 

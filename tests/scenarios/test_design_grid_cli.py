@@ -31,7 +31,7 @@ def test_design_of_a_small_part_on_identifys_grid_and_the_refusal_names_the_grid
     plan = _square_pocket_plan(tmp_path / "plan.csv")
     js = tmp_path / "d.json"
     assert GRID_DEFAULT == "22"
-    args = ["design", str(plan), "--n-angles", "4", "--step-deg", "15", "--reference-deg", "0,75,130,210"]
+    args = ["design", "--plan", str(plan), "--n-angles", "4", "--step-deg", "15", "--reference-deg", "0,75,130,210"]
     assert main([*args, "--json", str(js)]) == 0
     r = json.loads(js.read_text())
     assert len(r["c_deg"]) == 4 and r["max_u95_um"] <= r["reference_max_u95_um"]

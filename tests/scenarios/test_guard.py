@@ -109,10 +109,10 @@ def test_import_dt_messages(files, capsys, extra, msg):
 
 
 def test_design_step_zero_and_usage_errors_are_one_line(files, capsys):
-    assert main(["design", str(files["plan"]), "--n-angles", "4", "--step-deg", "0"]) == 2
+    assert main(["design", "--plan", str(files["plan"]), "--n-angles", "4", "--step-deg", "0"]) == 2
     one_line(capsys, "vmt design: error: --step-deg must be > 0 and divide 360, got 0")
     with pytest.raises(SystemExit) as e:
-        main(["design", str(files["plan"]), "--n-angles", "four"])
+        main(["design", "--plan", str(files["plan"]), "--n-angles", "four"])
     assert e.value.code == 2
     one_line(capsys, "vmt design: error: argument --n-angles: invalid int value: 'four' (see vmt design --help)")
 
@@ -199,7 +199,7 @@ MACHINE_TOML = 'format = "vmt-machine/1"\nname = "mine"\nbase = "vmc-3axis"\nerr
 @pytest.mark.parametrize("cmd", [
     ["simulate", "cross-pocket", "--machine", "{f}", "--out", "{f}"],
     ["machine", "program", "--plan", "{plan}", "--machine", "{f}", "--safe-z-mm", "80", "--out", "{f}"],
-    ["vcmm", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
+    ["vcmm", "--plan", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
      "--machine", "{f}", "--json", "{f}"],
 ])
 def test_machine_file_given_as_the_output_is_refused(files, capsys, cmd):
@@ -254,8 +254,8 @@ def test_a_folder_given_as_the_machine_file_is_named_a_folder(files, capsys, cmd
 
 @pytest.mark.parametrize("cmd, named", [
     (["regress", "{s}", "--junit", "{s}"], "STUDY"),
-    (["design", "{p}", "--n-angles", "3", "--json", "{p}"], "PLAN"),
-    (["vcmm", "{p}", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "{p}"], "PLAN"),
+    (["design", "--plan", "{p}", "--n-angles", "3", "--json", "{p}"], "--plan"),
+    (["vcmm", "--plan", "{p}", "--machine", "vmc-3axis", "--task", "t.toml", "--json", "{p}"], "--plan"),
 ])
 def test_a_positional_input_is_named_as_the_usage_names_it(files, capsys, cmd, named):
     """main named these inputs '--study', '--plan': options the commands do not have."""
@@ -310,7 +310,7 @@ STDOUT_CASES = [
     (["iso230-2", "{sample}", "--json", "{dir}/s.json", "--write-log", "/dev/stdout"], "# format: positioning-log/1"),
     (["machine", "program", "--plan", "{plan}", "--out", "/dev/stdout", "--limits-mm", "X-9:9,Y-9:9,Z-9:99",
       "--safe-z-mm", "50"], "%"),
-    (["vcmm", "{vplan}", "--machine", "vmc-3axis", "--task", "{vtask}", "--no-budget", "--tol-um", "2",
+    (["vcmm", "--plan", "{vplan}", "--machine", "vmc-3axis", "--task", "{vtask}", "--no-budget", "--tol-um", "2",
       "--json", "/dev/stdout"], "{"),
 ]
 
@@ -579,7 +579,7 @@ def test_sigterm_puts_the_outputs_back_and_says_so_as_ctrl_c_does(tmp_path, work
     assert main(["simulate", "cross-pocket", "--plan-only", "--out", str(plan)]) == 0
     keep = tmp_path / "keep.json"
     keep.write_text("PRE-EXISTING\n")
-    cmd = [sys.executable, "-m", "scenarios.cli", "design", str(plan), "--n-angles", "4", "--json", str(keep)]
+    cmd = [sys.executable, "-m", "scenarios.cli", "design", "--plan", str(plan), "--n-angles", "4", "--json", str(keep)]
     proc = subprocess.Popen(cmd + (["--workers", workers] if workers else []), cwd=root, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(root)})
     try:

@@ -105,7 +105,7 @@ def test_design_command(tmp_path, rng, capsys):
     log = tmp_path / "camp.csv"
     write_campaign(log, rng)
     out = tmp_path / "d.json"
-    assert main(["design", str(log), "--n-angles", "3", "--step-deg", "30", "--reference-deg", "0,60,150",
+    assert main(["design", "--plan", str(log), "--n-angles", "3", "--step-deg", "30", "--reference-deg", "0,60,150",
                  "--json", str(out)]) == 0
     r = json.loads(out.read_text())
     assert r["format"] == "vmt-design/1"   # docs/formats.md

@@ -85,7 +85,7 @@ def test_iso230_2_bad_input_exit_2(tmp_path, capsys, text, kind, match):
     if text is not None:
         p.write_text(text)
     out = tmp_path / "r.json"
-    assert main(["iso230-2", str(p), "--json", str(out), "--from", kind]) == 2
+    assert main(["iso230-2", str(p), "--json", str(out), "--log-kind", kind]) == 2
     err = capsys.readouterr().err
     assert match in err and err.count("\n") == 1
     assert not out.exists()  # nothing half-written

@@ -104,7 +104,7 @@ def test_cli_bad_sobol_runs_exit_2(tmp_path, capsys, n):
     plan, task, out = tmp_path / "plan.csv", tmp_path / "task.toml", tmp_path / "out.json"
     write_probe_log(plan, GAUGE)
     task.write_text(GAUGE_TASK)
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
                  "--sobol-runs", n]) == 2
     err = capsys.readouterr().err
     assert "--sobol-runs must be 0 or >= 2" in err and err.count("\n") == 1 and not out.exists()

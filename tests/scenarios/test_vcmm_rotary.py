@@ -67,7 +67,7 @@ def _run(tmp_path, capsys, c1, c2, extra=""):
     task.write_text(TASK + extra)
     plan = _plan(tmp_path, c1, c2)
     rc = main(["vcmm", "--machine", "mikron-ucp710", "--task", str(task), "--no-budget", "--seed", "1",
-               "--json", str(tmp_path / "out.json"), str(plan)])
+               "--json", str(tmp_path / "out.json"), "--plan", str(plan)])
     return rc, capsys.readouterr()
 
 
@@ -139,7 +139,7 @@ def test_a_circle_on_a_tilted_table_is_refused(tmp_path, capsys):
     task = tmp_path / "task.toml"
     task.write_text(TASK)
     rc = main(["vcmm", "--machine", "mikron-ucp710", "--task", str(task), "--no-budget",
-               "--json", str(tmp_path / "out.json"), str(p)])
+               "--json", str(tmp_path / "out.json"), "--plan", str(p)])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1
     assert "features.b1: a circle probed at A=-30 B=0 with normals 0.462 out of the machine's XY plane" in err[0]

@@ -187,7 +187,7 @@ def test_cli_machine_state_end_to_end(tmp_path, identify_json, realistic, capsys
     task.write_text(VS.TASK.replace("batch_runs = 100\nmax_runs = 400", "batch_runs = 20\nmax_runs = 40")
                     + "[declared.EXX]\nperiodic_um = 0.1\n"
                     "period_mm = 10.0\n")
-    assert main(["vcmm", str(plan), "--machine", "nmv3000", "--task", str(task), "--json", str(out),
+    assert main(["vcmm", "--plan", str(plan), "--machine", "nmv3000", "--task", str(task), "--json", str(out),
                  "--machine-state", str(identify_json), "--noise-um", "0.25"]) == 0
     rep = json.loads(out.read_text())
     assert rep["machine_state"]["symbols"] == ["EXX", "EYX", "EXY", "EYY", "ECY", "EC0Y"]
@@ -213,7 +213,7 @@ def test_cli_bad_machine_state_exits_2_with_one_line(tmp_path, capsys, content, 
     task.write_text(GAUGE_TASK)
     if content is not None:
         st.write_text(content)
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
                  "--machine-state", str(st)]) == 2
     err = capsys.readouterr().err
     assert match in err and err.count("\n") == 1 and "Traceback" not in err
@@ -230,7 +230,7 @@ def test_cli_state_of_an_axis_the_machine_lacks_exits_2(tmp_path, capsys, identi
     write_probe_log(plan, GAUGE)
     task.write_text(GAUGE_TASK)
     st.write_text(json.dumps(doc))
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
                  "--machine-state", str(st)]) == 2
     err = capsys.readouterr().err
     assert "EA0C: axis C is not in machine" in err and err.count("\n") == 1

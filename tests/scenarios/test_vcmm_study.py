@@ -198,7 +198,7 @@ def test_cli_end_to_end_gauge(tmp_path, machine, capsys):
     plan, task, out = tmp_path / "plan.csv", tmp_path / "task.toml", tmp_path / "out.json"
     write_probe_log(plan, GAUGE)
     task.write_text(GAUGE_TASK)
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
                  "--seed", "1", "--report", str(tmp_path / "rep")]) == 0
     assert (tmp_path / "rep" / "index.html").is_file() and (tmp_path / "rep" / "budget.png").is_file()
     rep = json.loads(out.read_text())
@@ -241,7 +241,7 @@ def test_bad_task_exits_2_with_one_line(tmp_path, capsys, body, match):
     plan, task, out = tmp_path / "plan.csv", tmp_path / "task.toml", tmp_path / "out.json"
     write_probe_log(plan, GAUGE)
     task.write_text(body)
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
     err = capsys.readouterr().err
     assert match in err and err.count("\n") == 1 and "Traceback" not in err
     assert not out.exists()
@@ -255,7 +255,7 @@ def test_points_not_on_one_feature_exit_2(tmp_path, capsys):
     write_probe_log(plan, plan_of(rows))
     task.write_text("[features.a]\nkind = \"plane\"\nfeature = \"a\"\n[[measurands]]\nname = \"f\"\n"
                     "quantity = \"flatness\"\nof = \"a\"\n")
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out)]) == 2
     assert "not on one plane" in capsys.readouterr().err
 
 
@@ -268,7 +268,7 @@ def test_cli_best_estimate_errors_default_to_the_shipped_file(tmp_path, capsys):
     docs = {}
     for tag, extra in (("omitted", []), ("none", ["--errors", "none"]), ("realistic", ["--errors", "realistic"])):
         out = tmp_path / f"{tag}.json"
-        assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
+        assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", str(task), "--json", str(out),
                      "--seed", "1", "--no-budget", *extra]) == 0
         docs[tag] = {k: v for k, v in json.loads(out.read_text()).items() if k not in ("elapsed_s", "runs_per_s")}
     capsys.readouterr()

@@ -49,7 +49,7 @@ def _said_once(err: str, command: str, warning: str) -> None:
 @pytest.mark.parametrize("command, argv", [
     ("discover", ["discover", "{log}", "--json", "{out}"]),
     ("identify", ["identify", "{log}", "--json", "{out}"]),
-    ("design", ["design", "{log}", "--n-angles", "4", "--step-deg", "45", "--json", "{out}"]),
+    ("design", ["design", "--plan", "{log}", "--n-angles", "4", "--step-deg", "45", "--json", "{out}"]),
 ])
 def test_probe_log_analyses_say_the_readers_warning_and_carry_it(tmp_path, capsys, empty_c0, command, argv):
     log, warning = empty_c0
@@ -101,7 +101,8 @@ def cut_plan(tmp_path) -> tuple[Path, str]:
 def test_vcmm_says_the_plans_warning_and_carries_it(tmp_path, capsys, cut_plan):
     plan, warning = cut_plan
     out = tmp_path / "v.json"
-    assert main(["vcmm", str(plan), "--machine", "vmc-3axis", "--task", TASK, "--no-budget", "--json", str(out)]) == 0
+    assert main(["vcmm", "--plan", str(plan), "--machine", "vmc-3axis", "--task", TASK, "--no-budget",
+                 "--json", str(out)]) == 0
     _said_once(capsys.readouterr().err, "vcmm", warning)
     assert json.loads(out.read_text())["input_warnings"] == [warning]
 
