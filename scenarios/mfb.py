@@ -1236,6 +1236,8 @@ class ScenarioResult:
             e["decision"] = {k: v for k, v in dec[s].items() if k != "factor"}
         doc["applied_rule"] = plan["rule"]
         doc["predicted_residual"] = plan["predicted_residual"]
+        if nc := rotary_not_compensated(res.chain):   # the rotary axes: none of their errors is in the tables
+            doc["not_compensated"] = nc
         out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json", json.dumps(doc, indent=1)))
         return [Path(p) for p in out]
 
@@ -1835,6 +1837,32 @@ def describe_twists(tw: dict) -> str:
                      f"({v['sensing'].split(';')[0].split(':')[0]})" for s, v in tw.items())
 
 
+def rotary_not_compensated(chain: str) -> dict | None:
+    """The ``not_compensated`` entry of an MFB run's JSON and of its ``vmt-comp/1`` file (review33b F2): on a
+    chain with rotary axes, that none of their errors (location errors and error motions, ISO 230-7) is
+    identified or compensated: the MFB identifies the linear axes' 21, and each set-up's pose (the bar as the
+    rotary axes present it) absorbs theirs. None on a chain without rotary axes."""
+    from core import iso
+    from core.chain import parse_chain
+
+    axes = parse_chain(chain).rotary_axes
+    if not axes:
+        return None
+    names = [sy.name for a in axes for loc in (True, False) for sy in iso.symbols_of_axis(a, location=loc)]
+    return {"axes": list(axes), "errors": names,
+            "why": f"not identified: the MFB identifies the linear axes' 21 errors; each set-up's pose (the bar "
+                   f"as {' and '.join(axes)} present it) absorbs the rotary axes' location errors and error "
+                   "motions at its angles, so no table or file here corrects them: the tip relative to the part keeps "
+                   "them at every rotary position until they are measured (ISO 230-7, e.g. an R-test) and "
+                   "compensated on their own"}
+
+
+def describe_not_compensated(nc: dict) -> str:
+    """The terminal's note line for :func:`rotary_not_compensated`'s entry."""
+    return (f"note: not compensated: the rotary axes {', '.join(nc['axes'])} ({len(nc['errors'])} errors, "
+            f"{nc['errors'][0]}..{nc['errors'][-1]}): {nc['why']}")
+
+
 def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
@@ -1862,6 +1890,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
             "twists": _twists(errors) if plan.rotary else {},  # (TWIST_SENSING: the 5-axis plan's sensing)
+            **({"not_compensated": nc} if (nc := rotary_not_compensated(res.chain)) else {}),
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
 
 

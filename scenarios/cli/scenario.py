@@ -71,6 +71,10 @@ def _mfb(args) -> int:
         from scenarios.mfb import describe_twists
 
         print(describe_twists(d["twists"]))
+    if d.get("not_compensated"):
+        from scenarios.mfb import describe_not_compensated
+
+        print(describe_not_compensated(d["not_compensated"]))
     if args.comp:
         for p in r.write_comp(args.comp):
             print(f"wrote {p}")
