@@ -137,6 +137,29 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
     return "XYZ", "the plan has no rotary columns"
 
 
+def _rotary_sense_lines(axes: str) -> list:
+    """The program header's lines on which way a positive rotary angle turns (review33b F3), for the rotary
+    axes among ``axes``; none without one. vmt's chain turns the part by minus the angle about the axis line
+    (``core.kinematics``: ``Rot(e, -theta)`` on the workpiece branch; the self-calibration paper's eq 1):
+    +A, +B, +C are right-handed turns of the tool relative to the part (ISO 841), a table turning clockwise
+    seen from the + end of X, Y, Z. A controller turning the other way puts each target at the mirrored angle,
+    and the unguarded G1 to its approach start can drive the probe into the part: hence the dry check."""
+    rot = [a for a in axes if a in "ABC"]
+    if not rot:
+        return []
+    a = "C" if "C" in rot else rot[0]
+    end = {"A": "+X", "B": "+Y", "C": "+Z, from above"}[a]
+    return [f"(rotary axes {' '.join(rot)}: a positive angle is a right-handed turn of the tool relative to the "
+            "part [ISO 841]:)",
+            "(a table turns the part by minus the angle, clockwise seen from the + end of X, Y, Z, a head "
+            "counter-clockwise;)",
+            f"(dry check before the first run: at safe Z, with no part near the probe, turn {a} by +90 and look: "
+            f"the table)",
+            f"(must turn clockwise seen from {end}; if it turns the other way every target lies at the mirrored "
+            "angle)",
+            "(and the G1 moves to the approach starts drive the probe into the part: do not run this program)"]
+
+
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
                  wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None,
                  from_row: int = 0) -> str:
@@ -223,6 +246,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
            f"(a run that stops early leaves {wcs} zeroed: its earlier values are the DEBUG line below)",
            "(load the probe tool with its length offset, G43, before running)",
+           *_rotary_sense_lines(axes if rotary else ""),
            f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
            "each LOG line carries its G38.2 move as G91 G38.2 words, start to end:)",
            "(vmt import linuxcnc reads the stroke from them and checks each touch within it)",
