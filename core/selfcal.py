@@ -1377,12 +1377,25 @@ def check_count(touches: Touches, grid: Grid) -> None:
 
 
 def _check_nodes(des: SelfCalDesign) -> None:
-    """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
+    """Raise naming every grid node no touch constrains (they would be solved from the gauge alone).
+
+    An ``ECC`` column is no grid value: it is zero when every probed normal passes through the C axis (a
+    circle or a bore probed radially about it: a turn about the axis moves no touch along its normal), and
+    the refusal says that, and which faces would see the angle (review33b F4: it gave the grid's advice)."""
     colnorm = column_norms(des.A)
     zero = np.flatnonzero(colnorm <= 1e-12 * colnorm.max())
-    if zero.size:
-        shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
-        raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
+    if not zero.size:
+        return
+    ecc = [i for i in zero if des.names[i].startswith("ECC[")]
+    if ecc:
+        at = ", ".join(des.names[i][len("ECC[C="):-1] for i in ecc)
+        raise IdentifiabilityError(
+            f"the C angle is not seen (ECC at C = {at}): every probed normal passes through the C axis (a circle "
+            "or bore probed radially about it), so a turn about the axis moves no touch along its normal; probe "
+            "faces whose normals miss the axis as well (a flat side, a slot's or pocket's walls, a circle off the "
+            "axis)")
+    shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
+    raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
 
 
 def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
