@@ -1460,3 +1460,22 @@ def test_a_thermal_drift_acts_across_the_campaign_and_injected_is_its_time_mean(
         if k != "EXX":      # measured 4e-8; the drift moves EXX's injected by up to 28 um)
             np.testing.assert_allclose(doc["errors"][k]["injected"], static["errors"][k]["injected"], rtol=0,
                                        atol=1e-6, err_msg=k)
+
+
+def test_plan_5axis_docstring_says_what_the_plan_does():
+    """review33b F5: the docstring said 13 set-ups and 17 measurements, X3 on TY1 and VX on TX1, TX2, TXL
+    (dJ_X 50 mm), the plan before session 26/27; its counts, X3's and VX's styli and the arm difference are
+    read here from the plan itself (STYLI_5AXIS: TX3's arm 250 mm against TX1's 100 mm)."""
+    import scenarios.mfb as S
+
+    p = S.plan_5axis()
+    doc = " ".join(S.plan_5axis.__doc__.split())
+    n_set, n_meas = len({m.setup for m in p.measurements}), len(p.measurements)
+    assert (n_set, n_meas) == (12, 15)
+    assert f"4 bar placements, {n_set} rotary set-ups, {n_meas} measurements" in doc
+    st = {m.name: m.stylus for m in p.measurements}
+    assert st["X3"] == "TYM" and "X3 (A = -90, C = 0, TYM)" in doc
+    assert [st[k] for k in ("VXa", "VXb", "VXc")] == ["TX1", "TX3", "TXL"] and "VX (A = -90; TX1 and TX3" in doc
+    dJx = abs(S.STYLI_5AXIS["TX3"][0] - {**S.STYLI, **S.STYLI_5AXIS}["TX1"][0]) * 1e3
+    assert dJx == pytest.approx(150.0) and "dJ_X 150 mm between TX1 and TX3" in doc
+    assert "TX2" not in doc and "TY1)" not in doc and "dJ_X 50 mm" not in doc
