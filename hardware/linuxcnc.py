@@ -736,7 +736,9 @@ def positioning_comp_file(test) -> str:
     nominal plus the mean deviation approached in + / in - (ISO 230-2's
     ``x̄_i↑``, ``x̄_i↓``: the standard's deviation, measured minus target, is
     the tool relative to the part, as :func:`comp_file`'s E). A log without
-    the key has J = 0: its targets are taken as the axis positions.
+    the key has J = 0: its targets are taken as the axis positions. A
+    rotary test (degrees) over less than a turn gets the two lines that
+    close it (:func:`rotary_wrap_rows`).
 
     Parameters
     ----------
@@ -751,7 +753,7 @@ def positioning_comp_file(test) -> str:
     Raises
     ------
     ConfigError
-        More than :data:`COMP_SIZE` targets. (A log that cannot be arranged
+        More than :data:`COMP_SIZE` lines. (A log that cannot be arranged
         raises :class:`core.positioning.PositioningLogError`.)
     """
     from core.exceptions import ConfigError
@@ -763,7 +765,35 @@ def positioning_comp_file(test) -> str:
     nom = np.asarray(t.targets, float) + float(t.joint_offset)
     fwd = nom + np.nanmean(t.dev_up, axis=1)
     rev = nom + np.nanmean(t.dev_down, axis=1)
-    return comp_text(np.column_stack([nom, fwd, rev]))
+    rows = np.column_stack([nom, fwd, rev])
+    if t.unit == "deg":
+        rows = rotary_wrap_rows(rows)
+        if len(rows) > COMP_SIZE:
+            raise ConfigError(f"positioning_comp_file: {t.m} targets and the lines closing the turn "
+                              f"(rotary_wrap_rows) make {len(rows)}, LinuxCNC takes at most {COMP_SIZE} per joint")
+    return comp_text(rows)
+
+
+#: The turn of a rotary joint, degrees: a table at C and at C + 360 is at the same place
+TURN_DEG = 360.0
+
+
+def rotary_wrap_rows(rows) -> np.ndarray:
+    """A rotary joint's TYPE 0 rows (degrees) closed around the turn (review33b F6).
+
+    LinuxCNC looks the table up at the joint command as it is (``compute_screw_comp`` in
+    src/emc/motion/control.c: linear between the lines, the end lines' values held beyond them; no
+    modulo), so a test at 0, 90, 180, 270 deg leaves 270-360 deg at 270's trim where the table, back
+    at 0 deg's place, needs 0's. When the targets span less than a turn, this adds a line at the first
+    target + 360 deg with the first target's deviations and one at the last target - 360 deg with the
+    last's (a command below the first target, on an axis not wrapped to 0-360); the error is taken as
+    periodic in the turn, as a table's positioning error is. A test over a whole turn or more is
+    returned as it is. ``rows``: (k, 3) nominal, forward, reverse, ascending nominals."""
+    rows = np.asarray(rows, float)
+    first, last = rows[0], rows[-1]
+    if last[0] - first[0] >= TURN_DEG - 1e-9:
+        return rows
+    return np.vstack([last - TURN_DEG, rows, first + TURN_DEG])
 
 
 def add_comp(old_rows, residual_rows) -> np.ndarray:
