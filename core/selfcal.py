@@ -27,7 +27,8 @@ reports the same quantities with the opposite sign. ``EXC,total(C_j)`` is
 the tool's X displacement relative to the part due to the C axis at
 ``C_j``: on a table-side C, the ISO radial motion ``EXC(C_j)`` minus the
 line's position ``EX0C`` (a location error is the position of the axis
-average line, whichever side it is on; the part rides on it). ``ECC`` is the
+average line, whichever side it is on; the part rides on it; on a C carried
+by A, plus what A's errors add, :func:`c_centre_note`). ``ECC`` is the
 ISO angular positioning error: actual minus commanded C of the tool
 relative to the part (with C positive as in eq 1).
 
