@@ -20,8 +20,13 @@ tool 1 um further in +X relative to the part than commanded, as a
 tool-moving X does); translations are positive along the positive axis
 directions of ISO 841, angular errors right-handed rotations about X (A),
 Y (B), Z (C), in radians. Location errors are the position and
-orientation of an axis's reference (or average) line in the machine frame
-R, the same value whichever side the axis is on.
+orientation of an axis's reference (or average) line with all axes at zero,
+the same value whichever side the axis is on: a linear axis's line in the
+machine frame R; a rotary axis's relative to the axis carrying it, in that
+carrier's frame (R only for an axis on the bed): a C carried by A has its
+line in R at A = 0 at ``EX0C``, ``EY0C`` plus what A's errors add there
+(``EY0A``; ``EB0A`` times the height above A's line), CONTRIBUTING.md
+"Error conventions".
 
 Zero conventions of ISO 230-1 (X primary, Y secondary): the zero-position
 errors ``EX0X``, ``EY0Y``, ``EZ0Z`` and the offsets of the linear reference

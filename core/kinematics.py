@@ -56,7 +56,8 @@ tool-branch axis. A table-moving X with ``EXX = +1 um`` puts the tool
 tool-moving X does. A rotary axis's ``E_k`` sits in its carrier's
 non-rotating frame at the axis line: ``ECC`` is actual minus commanded C
 of the tool relative to the part on both branches. Location errors are the
-geometry of the axis lines in R and enter both branches alike.
+geometry of the axis lines (a linear axis's in R, a rotary axis's relative
+to its carrier, below) and enter both branches alike.
 
 Location rotations ``rel_k``: a rotary axis's orientation errors (``EA0C``,
 ``EB0C``) are relative to the component carrying it. A linear axis's
@@ -74,7 +75,11 @@ axis, so the squareness only shifts X by ``-y EC0Y`` (eq. 4).
 
 A location error moves its line, and with it what the axis carries: a C
 line at ``+EX0C`` on the workpiece branch shifts the part by ``+EX0C``, the
-tip relative to the part by ``-EX0C``.
+tip relative to the part by ``-EX0C``. A rotary axis's position errors
+``d_k`` sit in its carrier's frame too (``Trans(c_k + d_k)`` after the
+carrier's transform): a C carried by A has its line in R, at A = 0, at
+``d_C + w_C x (P - c_C) + d_A + w_A x (P - c_A)`` less A's error motions
+there (CONTRIBUTING.md, "Error conventions"; ``tests/sim/test_iso_convention.py``).
 
 Units: SI (m, rad); arrays batched over a leading axis n.
 """

@@ -27,7 +27,8 @@ reports the same quantities with the opposite sign. ``EXC,total(C_j)`` is
 the tool's X displacement relative to the part due to the C axis at
 ``C_j``: on a table-side C, the ISO radial motion ``EXC(C_j)`` minus the
 line's position ``EX0C`` (a location error is the position of the axis
-average line, whichever side it is on; the part rides on it). ``ECC`` is the
+average line, whichever side it is on; the part rides on it; on a C carried
+by A, plus what A's errors add, :func:`c_centre_note`). ``ECC`` is the
 ISO angular positioning error: actual minus commanded C of the tool
 relative to the part (with C positive as in eq 1).
 
@@ -374,6 +375,53 @@ def _c_names(setup_ids, c_rad):
     deg = [f"{np.degrees(c):g}" for c in c_rad]
     dup = len(set(deg)) < len(deg)
     return [f"C={d}deg" + (f"#{s}" if dup else "") for d, s in zip(deg, setup_ids)]
+
+
+#: A carrying rotary axis's location errors (d: translation, w: rotation), C's own, and its error motions
+#: (e, eps), per carrier: the terms :func:`c_centre_note` names
+_CARRIER_TERMS = {
+    "A": ("(0, EY0A, EZ0A)", "(0, EB0A, EC0A)", "(EXA, EYA, EZA)", "(EAA, EBA, ECA)",
+          "EY0A alone puts the centre at (0, -EY0A), EB0A alone at (-EB0A (z - z_A), 0)"),
+    "B": ("(EX0B, 0, EZ0B)", "(EA0B, 0, EC0B)", "(EXB, EYB, EZB)", "(EAB, EBB, ECB)",
+          "EX0B alone puts the centre at (-EX0B, 0), EA0B alone at (0, EA0B (z - z_B))"),
+}
+
+
+def c_centre_note(chain_text: str | None = None) -> str:
+    """The report's note on what puts ``EXC``, ``EYC`` on a circle, and where its centre comes from.
+
+    A rotary axis's location errors are relative to the axis carrying it
+    (CONTRIBUTING.md, "Error conventions"): on a C that rides on A or B
+    (``chain_text``, the log's ``kinematic_chain``, says which) the line the
+    circle shows is ``EX0C``, ``EY0C`` plus what the carrier's location
+    errors and error motions add at its position, named here (first order;
+    ``tests/sim/test_iso_convention.py`` checks the expression against the
+    simulator's chain); ``None`` (no chain) says so in words.
+    """
+    head = ("EXC, EYC are the tool's displacement relative to the part due to the C axis (eq 13's table "
+            "displacement with the opposite sign), 0 at the reference set-up: a C line displaced by (dx, dy) in R "
+            "at the touches' height z puts them on a circle centred on -(dx, dy), the line as seen from the tool "
+            "at the grid origin")
+    carrier = None
+    if chain_text:
+        from .chain import parse_chain
+
+        ch = parse_chain(chain_text)
+        if "C" in ch.axes:
+            carrier = ch.parent("C")
+            if carrier is None:
+                return head + "; C sits on the bed: (dx, dy) = (EX0C + EB0C (z - z_C), EY0C - EA0C (z - z_C))"
+    if carrier not in _CARRIER_TERMS:
+        return (head + ": (EX0C, EY0C) and, on a C carried by another axis, what that axis's location errors and "
+                "error motions add at its position (C's location errors are relative to the axis carrying it, "
+                "CONTRIBUTING.md \"Error conventions\")")
+    d, w, e, eps, example = _CARRIER_TERMS[carrier]
+    k = carrier
+    return (head + f"; in this chain ({chain_text}) C rides on {k} and its location errors are relative to {k} "
+            f"(CONTRIBUTING.md \"Error conventions\"): (dx, dy) are X and Y of d_C + w_C x (P - c_C) + d_{k} + "
+            f"w_{k} x (P - c_{k}) - (e_{k} + eps_{k} x (P - c_{k})), with C's location errors d_C = (EX0C, EY0C, 0), "
+            f"w_C = (EA0C, EB0C, 0), {k}'s d_{k} = {d}, w_{k} = {w} and its error motions at its position in the "
+            f"log e_{k} = {e}, eps_{k} = {eps}; c_C, c_{k} points on the lines, P C's line at height z: {example}")
 
 
 def yaw_for_chain(chain_text: str | None) -> Yaw:
@@ -1330,12 +1378,25 @@ def check_count(touches: Touches, grid: Grid) -> None:
 
 
 def _check_nodes(des: SelfCalDesign) -> None:
-    """Raise naming every grid node no touch constrains (they would be solved from the gauge alone)."""
+    """Raise naming every grid node no touch constrains (they would be solved from the gauge alone).
+
+    An ``ECC`` column is no grid value: it is zero when every probed normal passes through the C axis (a
+    circle or a bore probed radially about it: a turn about the axis moves no touch along its normal), and
+    the refusal says that, and which faces would see the angle (review33b F4: it gave the grid's advice)."""
     colnorm = column_norms(des.A)
     zero = np.flatnonzero(colnorm <= 1e-12 * colnorm.max())
-    if zero.size:
-        shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
-        raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
+    if not zero.size:
+        return
+    ecc = [i for i in zero if des.names[i].startswith("ECC[")]
+    if ecc:
+        at = ", ".join(des.names[i][len("ECC[C="):-1] for i in ecc)
+        raise IdentifiabilityError(
+            f"the C angle is not seen (ECC at C = {at}): every probed normal passes through the C axis (a circle "
+            "or bore probed radially about it), so a turn about the axis moves no touch along its normal; probe "
+            "faces whose normals miss the axis as well (a flat side, a slot's or pocket's walls, a circle off the "
+            "axis)")
+    shown = ", ".join(des.names[i] for i in zero[:10]) + (f" and {zero.size - 10} more" if zero.size > 10 else "")
+    raise IdentifiabilityError(f"no touch constrains {shown}: fit the grid to the touches or add targets there")
 
 
 def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float | None = None, *,
@@ -1403,9 +1464,7 @@ def self_calibrate(touches: Touches, grid: Grid | None = None, delta_L_m: float 
              "ECC is the C axis's angular positioning error: actual minus commanded C of the tool relative "
              "to the part, positive a right-handed rotation of the tool relative to the part about Z (eq 13's "
              "table rotation with the opposite sign); 0 at the reference set-up",
-             "EXC, EYC are the tool's displacement relative to the part due to the C axis (eq 13's table "
-             "displacement with the opposite sign), 0 at the reference set-up: a C line at (EX0C, EY0C) puts "
-             "them on a circle centred on -(EX0C, EY0C), the line as seen from the tool at the grid origin",
+             c_centre_note(None),
              "G is the workpiece deviation along the outward normal (eq 7)"]
     if des.heights is not None:
         ht = des.heights

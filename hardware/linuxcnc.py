@@ -137,6 +137,29 @@ def program_axes(plan: ProbeLog, axes: str | None = None) -> tuple[str, str]:
     return "XYZ", "the plan has no rotary columns"
 
 
+def _rotary_sense_lines(axes: str) -> list:
+    """The program header's lines on which way a positive rotary angle turns (review33b F3), for the rotary
+    axes among ``axes``; none without one. vmt's chain turns the part by minus the angle about the axis line
+    (``core.kinematics``: ``Rot(e, -theta)`` on the workpiece branch; the self-calibration paper's eq 1):
+    +A, +B, +C are right-handed turns of the tool relative to the part (ISO 841), a table turning clockwise
+    seen from the + end of X, Y, Z. A controller turning the other way puts each target at the mirrored angle,
+    and the unguarded G1 to its approach start can drive the probe into the part: hence the dry check."""
+    rot = [a for a in axes if a in "ABC"]
+    if not rot:
+        return []
+    a = "C" if "C" in rot else rot[0]
+    end = {"A": "+X", "B": "+Y", "C": "+Z, from above"}[a]
+    return [f"(rotary axes {' '.join(rot)}: a positive angle is a right-handed turn of the tool relative to the "
+            "part [ISO 841]:)",
+            "(a table turns the part by minus the angle, clockwise seen from the + end of X, Y, Z, a head "
+            "counter-clockwise;)",
+            f"(dry check before the first run: at safe Z, with no part near the probe, turn {a} by +90 and look: "
+            f"the table)",
+            f"(must turn clockwise seen from {end}; if it turns the other way every target lies at the mirrored "
+            "angle)",
+            "(and the G1 moves to the approach starts drive the probe into the part: do not run this program)"]
+
+
 def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "vmt-probe.txt",
                  wcs: str = "G59.3", require_limits: bool = True, axes: str | None = None,
                  from_row: int = 0) -> str:
@@ -223,6 +246,7 @@ def part_program(plan: ProbeLog, settings: ProbeSettings, *, probe_file: str = "
            f"(at the end your {wcs}, your G92 offsets and the modal state [M70/M72] are restored;)",
            f"(a run that stops early leaves {wcs} zeroed: its earlier values are the DEBUG line below)",
            "(load the probe tool with its length offset, G43, before running)",
+           *_rotary_sense_lines(axes if rotary else ""),
            f"(probing stroke: clearance {settings.clearance_mm:g} + overtravel {settings.overtravel_mm:g} mm; "
            "each LOG line carries its G38.2 move as G91 G38.2 words, start to end:)",
            "(vmt import linuxcnc reads the stroke from them and checks each touch within it)",
@@ -720,7 +744,9 @@ def positioning_comp_file(test) -> str:
     nominal plus the mean deviation approached in + / in - (ISO 230-2's
     ``x̄_i↑``, ``x̄_i↓``: the standard's deviation, measured minus target, is
     the tool relative to the part, as :func:`comp_file`'s E). A log without
-    the key has J = 0: its targets are taken as the axis positions.
+    the key has J = 0: its targets are taken as the axis positions. A
+    rotary test (degrees) over less than a turn gets the two lines that
+    close it (:func:`rotary_wrap_rows`).
 
     Parameters
     ----------
@@ -735,7 +761,7 @@ def positioning_comp_file(test) -> str:
     Raises
     ------
     ConfigError
-        More than :data:`COMP_SIZE` targets. (A log that cannot be arranged
+        More than :data:`COMP_SIZE` lines. (A log that cannot be arranged
         raises :class:`core.positioning.PositioningLogError`.)
     """
     from core.exceptions import ConfigError
@@ -747,7 +773,35 @@ def positioning_comp_file(test) -> str:
     nom = np.asarray(t.targets, float) + float(t.joint_offset)
     fwd = nom + np.nanmean(t.dev_up, axis=1)
     rev = nom + np.nanmean(t.dev_down, axis=1)
-    return comp_text(np.column_stack([nom, fwd, rev]))
+    rows = np.column_stack([nom, fwd, rev])
+    if t.unit == "deg":
+        rows = rotary_wrap_rows(rows)
+        if len(rows) > COMP_SIZE:
+            raise ConfigError(f"positioning_comp_file: {t.m} targets and the lines closing the turn "
+                              f"(rotary_wrap_rows) make {len(rows)}, LinuxCNC takes at most {COMP_SIZE} per joint")
+    return comp_text(rows)
+
+
+#: The turn of a rotary joint, degrees: a table at C and at C + 360 is at the same place
+TURN_DEG = 360.0
+
+
+def rotary_wrap_rows(rows) -> np.ndarray:
+    """A rotary joint's TYPE 0 rows (degrees) closed around the turn (review33b F6).
+
+    LinuxCNC looks the table up at the joint command as it is (``compute_screw_comp`` in
+    src/emc/motion/control.c: linear between the lines, the end lines' values held beyond them; no
+    modulo), so a test at 0, 90, 180, 270 deg leaves 270-360 deg at 270's trim where the table, back
+    at 0 deg's place, needs 0's. When the targets span less than a turn, this adds a line at the first
+    target + 360 deg with the first target's deviations and one at the last target - 360 deg with the
+    last's (a command below the first target, on an axis not wrapped to 0-360); the error is taken as
+    periodic in the turn, as a table's positioning error is. A test over a whole turn or more is
+    returned as it is. ``rows``: (k, 3) nominal, forward, reverse, ascending nominals."""
+    rows = np.asarray(rows, float)
+    first, last = rows[0], rows[-1]
+    if last[0] - first[0] >= TURN_DEG - 1e-9:
+        return rows
+    return np.vstack([last - TURN_DEG, rows, first + TURN_DEG])
 
 
 def add_comp(old_rows, residual_rows) -> np.ndarray:

@@ -30,11 +30,16 @@ def identify_record(log, J_mm=None, used=None) -> dict:
 def identify_report(res, mc, on: dict) -> dict:
     """``res``'s report (``mc``: its Monte Carlo or None) with ``estimate.identified_on`` from ``on``
     (:func:`identify_record`); the tables at reading + the probe offsets ``on`` names (unknown: at the
-    readings)."""
+    readings). The note on the C circle's centre names what the axis carrying C adds to it in ``on``'s
+    chain (the log's ``kinematic_chain``; :func:`core.selfcal.c_centre_note`)."""
+    from core.selfcal import c_centre_note
     from core.state import identified_on
 
     J = on["probe_offsets_J_mm"]
     report = res.to_report(mc, None if J is None else [v * 1e-3 for v in J[0]])   # the state at reading + J
+    conv, generic = report.get("conventions"), c_centre_note(None)
+    if conv and "notes" in conv:
+        conv["notes"] = [c_centre_note(on.get("chain")) if n == generic else n for n in conv["notes"]]
     if "estimate" in report:
         report["estimate"]["identified_on"] = identified_on(**on)
     return report

@@ -410,7 +410,7 @@ NODES_5AXIS = {"X": np.linspace(-0.175, 0.275, 9), "Y": np.linspace(-0.225, 0.12
 
 
 def plan_5axis() -> MfbPlan:
-    """The 5-axis plan for ``mikron-ucp710``: 4 bar placements, 13 rotary set-ups, 17 measurements.
+    """The 5-axis plan for ``mikron-ucp710``: 4 bar placements, 12 rotary set-ups, 15 measurements.
 
     Chain ``[w C' A' b X Y Z (C1) t]``: the table turns (C on A, the A line
     120 mm below the table face), all linear axes carry the tool (eq. 8).
@@ -425,7 +425,7 @@ def plan_5axis() -> MfbPlan:
 
     - **P1**: the bar flat on its two supports on the table, along W x,
       first hole at (x, y) = (-175, 80) mm. X1 (A = C = 0, T0): along X at
-      (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TY1): along X at (-190, -40)
+      (y, z) = (80, 70) mm; X3 (A = -90, C = 0, TYM): along X at (-190, -40)
       mm, holes facing -Y; Y1 (C = 90; T0 and TXF in one pose): along -Y at
       (x, z) = (80, 70) mm; DXY / AXY (C = -45 / +45, T0) and DXZ (A = -90,
       C = -45, TYM): diagonals. (X3, DXZ, AXZ on TYM, a 60 mm arm: at A =
@@ -434,10 +434,12 @@ def plan_5axis() -> MfbPlan:
       out: no arm both keeps its spindle within Y and clears the bar.)
     - **P2**: the bar flat on a 150 mm riser block: X2 (A = C = 0, T0) at
       (y, z) = (0, 220) mm, Y2 (C = 90, T0) at (x, z) = (0, 220) mm.
-    - **P3**: the bar on its edge along W y, holes facing -W x, its
-      supports bolted to an angle plate, 105 mm above the table: Y3 (A = C =
-      0, TX1), VX (A = -90; TX1, TX2, TXL: the standing bar for the Z axis,
-      dJ_X 50 mm, dJ_Z 100 mm), DYZ (A = -45, TX1).
+    - **P3**: the bar on its edge along W y at x = 90 mm, holes facing -W x,
+      its supports bolted to an angle plate, 105 mm above the table: Y3 (A =
+      C = 0, TX1, holes 1-8), VX (A = -90; TX1 and TX3 on holes 7-12, TXL on
+      5-10: the standing bar for the Z axis, dJ_X 150 mm between TX1 and
+      TX3's 250 mm arm, dJ_Z 100 mm to TXL, whose carriage then passes the
+      same Z positions), DYZ (A = -45, TX1).
     - **P4**: flat along W x, first hole at (-300, 160) mm: AXZ (A = -90,
       C = 45, TYM), the XZ anti-diagonal (from P1 it falls below the Z
       stroke after 4 holes).
@@ -452,7 +454,7 @@ def plan_5axis() -> MfbPlan:
     and positioning, the *curvature* of EAX and EBX, ECX (a ramp of an
     angular error of X moves a bar along X rigidly); Y1 a / b (dJ_X 100 mm in
     one pose): ECY, EBY with their ramps; Y2 - Y1 (dz 150 mm): EAY, EBY; Y3;
-    VX (dJ_X 50 mm, dJ_Z 100 mm), one pose: ECZ, EAZ, EBZ with their
+    VX (dJ_X 150 mm, dJ_Z 100 mm), one pose: ECZ, EAZ, EBZ with their
     ramps; the diagonals: EC0Y, EB0Z, EA0Z and the
     twist ramps. The paper's 6 placements: this chain needs 4 (run with
     ``drop=`` to see what is lost without each).
@@ -1245,6 +1247,8 @@ class ScenarioResult:
         doc["predicted_residual"] = plan["predicted_residual"]
         if line_m is not None:
             doc["per_axis_line"] = comp_line_doc(line_m)
+        if nc := rotary_not_compensated(res.chain):   # the rotary axes: none of their errors is in the tables
+            doc["not_compensated"] = nc
         out.append(write_text_atomic(d / f"{self.doc['scenario']}-comp.json", json.dumps(doc, indent=1)))
         return [Path(p) for p in out]
 
@@ -1902,6 +1906,32 @@ def describe_twists(tw: dict) -> str:
                      f"({v['sensing'].split(';')[0].split(':')[0]})" for s, v in tw.items())
 
 
+def rotary_not_compensated(chain: str) -> dict | None:
+    """The ``not_compensated`` entry of an MFB run's JSON and of its ``vmt-comp/1`` file (review33b F2): on a
+    chain with rotary axes, that none of their errors (location errors and error motions, ISO 230-7) is
+    identified or compensated: the MFB identifies the linear axes' 21, and each set-up's pose (the bar as the
+    rotary axes present it) absorbs theirs. None on a chain without rotary axes."""
+    from core import iso
+    from core.chain import parse_chain
+
+    axes = parse_chain(chain).rotary_axes
+    if not axes:
+        return None
+    names = [sy.name for a in axes for loc in (True, False) for sy in iso.symbols_of_axis(a, location=loc)]
+    return {"axes": list(axes), "errors": names,
+            "why": f"not identified: the MFB identifies the linear axes' 21 errors; each set-up's pose (the bar "
+                   f"as {' and '.join(axes)} present it) absorbs the rotary axes' location errors and error "
+                   "motions at its angles, so no table or file here corrects them: the tip relative to the part keeps "
+                   "them at every rotary position until they are measured (ISO 230-7, e.g. an R-test) and "
+                   "compensated on their own"}
+
+
+def describe_not_compensated(nc: dict) -> str:
+    """The terminal's note line for :func:`rotary_not_compensated`'s entry."""
+    return (f"note: not compensated: the rotary axes {', '.join(nc['axes'])} ({len(nc['errors'])} errors, "
+            f"{nc['errors'][0]}..{nc['errors'][-1]}): {nc['why']}")
+
+
 def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None) -> dict:
     from core import iso, volumetric as vol
 
@@ -1929,6 +1959,7 @@ def _document(name, plan, res, unc, truth, n_touch, seed, sigma_um, slopes=None)
             "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6,
             "errors": errors, "max_dev_um": dev_um, "max_dev_urad": dev_urad,
             "twists": _twists(errors) if plan.rotary else {},  # (TWIST_SENSING: the 5-axis plan's sensing)
+            **({"not_compensated": nc} if (nc := rotary_not_compensated(res.chain)) else {}),
             "injected_note": "truth at the nodes, expressed in the same ISO 230-1 conventions (gauge)"}
 
 

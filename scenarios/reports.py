@@ -573,7 +573,9 @@ def map_cover_text(cover: dict | None) -> str:
 C_AXIS_TEXT = (
     "(EXC, EYC,total) at each C: the tool's displacement relative to the part due to the C axis (ISO 230-1; "
     "the paper's eq 13 has the table's, the opposite sign), 0 at the reference set-up. A table's C line at "
-    "(EX0C, EY0C) moves the tool relative to the part on a circle centred on -(EX0C, EY0C). In the gauge of "
+    "(EX0C, EY0C) moves the tool relative to the part on a circle centred on -(EX0C, EY0C); on a C carried by A "
+    "(the nmv3000's), C's location errors are relative to A, and A's add to the line (EY0A in Y, EB0A times "
+    "the height above A's line in X; the identification's note names them all). In the gauge of "
     "eqs 16-17 (X/Y tables 0 at the grid origin, scale and squareness fixed at the last nodes) the linear "
     "axes' error and the C axis's radial motion are in the centre too, which self-calibration cannot tell "
     "apart: the line is placed in that gauge.")

@@ -41,7 +41,9 @@ pitch ripple, default true), and the tables:
   taken with a stylus of offsets J lies at ``reading + J - offset`` in those
   terms (docs/formats.md, "Strokes"); with that tool, its readings;
 - ``[rotary_points]``: ``C_mm = [x, y, z]``, a point on each rotary axis's
-  nominal line in R with all axes at zero (default the origin);
+  nominal line in R with every axis position at zero (default the origin;
+  a linear axis's position is reading + ``[tool] offset_mm``, so a pivot
+  on the tool side is given where it is at readings = minus the offsets);
 - ``[tool]``: ``offset_mm = [J_X, J_Y, J_Z]``, spindle gauge point minus
   stylus-tip centre (MFB paper eq. 8; default [0, 0, 150]);
 - ``[probe]``: ``stylus_radius_mm``, ``pretravel_um``,
@@ -81,7 +83,11 @@ the probe log holds: ``EZZ`` ``slope_um_per_m = 10`` with ``offset_mm = [0, 0,
   default and needs ``reversal_U`` (``sim.errorfuncs.Reversal``).
 
 Location errors (``EC0Y``, ``EB0Z``, ``EA0Z``, ``EX0C`` ...) take
-``constant_U`` only.
+``constant_U`` only. A linear axis's orient its line in R; a rotary axis's
+are relative to the axis carrying it (its line in the carrier's frame): on
+a C carried by A, C's line in R at A = 0 is ``EX0C``, ``EY0C`` plus what
+A's errors add there (``EY0A``; ``EB0A`` times the height above A's line;
+CONTRIBUTING.md, "Error conventions").
 
 Bounds: an error the file gives, its terms summed, must stay within
 :data:`MAX_ANGULAR_URAD` (a rotation) or :data:`MAX_LINEAR_UM` (a

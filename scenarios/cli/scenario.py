@@ -73,6 +73,10 @@ def _mfb(args) -> int:
         from scenarios.mfb import describe_twists
 
         print(describe_twists(d["twists"]))
+    if d.get("not_compensated"):
+        from scenarios.mfb import describe_not_compensated
+
+        print(describe_not_compensated(d["not_compensated"]))
     if args.comp:
         line = None if args.comp_line_mm is None else comp_line_m(args.comp_line_mm, r)
         for p in r.write_comp(args.comp, line):

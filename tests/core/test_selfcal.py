@@ -423,3 +423,31 @@ def test_design_rows_are_sorted():
         A = build_design(nominal_touches(w, wn, ANGLES), GRID, yaw=yaw).A
         assert A.has_sorted_indices
         assert all(np.all(np.diff(A.indices[A.indptr[i]:A.indptr[i + 1]]) > 0) for i in range(A.shape[0]))
+
+
+@pytest.mark.parametrize("c_deg", [(0, 90, 180, 270), (0, 45, 90, 135)])
+def test_normals_through_the_c_axis_refused_naming_the_c_angle(c_deg):
+    """review33b F4 (its selfcal_degen.py "4-fold part" cases): 16 targets on a 60 mm circle about the C axis,
+    probed radially: every normal passes through the axis, so no touch sees a turn about it and the ECC
+    columns are zero. The refusal said "no touch constrains ECC[C=0deg], ...: fit the grid to the touches",
+    a grid's advice for a value that is no grid node; it now says the C angle is not seen and why. The same
+    circle with one flat-faced target whose normal misses the axis is not refused for it."""
+    from core.exceptions import IdentifiabilityError
+    from core.selfcal import Grid, nominal_touches, self_calibrate
+
+    ang = np.radians(np.arange(0, 360, 22.5))
+    w, wn = np.c_[0.06 * np.cos(ang), 0.06 * np.sin(ang)], np.c_[np.cos(ang), np.sin(ang)]
+    grid = Grid(np.array([-0.1, 0.0, 0.1]), np.array([-0.1, 0.0, 0.1]))
+    t = nominal_touches(w, wn, c_deg, stylus_r_m=0.003)
+    with pytest.raises(IdentifiabilityError) as e:
+        self_calibrate(t, grid, 0.0, yaw="ECY", heights=False, model_error=False)
+    msg = str(e.value)
+    assert msg.startswith("the C angle is not seen (ECC at C = " + ", ".join(f"{c}deg" for c in c_deg) + ")")
+    assert "every probed normal passes through the C axis" in msg and "normals miss the axis" in msg
+    assert "fit the grid" not in msg
+    w2, wn2 = np.r_[w, [[0.07, 0.03]]], np.r_[wn, [[1.0, 0.0]]]    # a flat side at x = 70 mm, 30 mm off the axis
+    try:
+        self_calibrate(nominal_touches(w2, wn2, c_deg, stylus_r_m=0.003), grid, 0.0, yaw="ECY", heights=False,
+                       model_error=False)
+    except IdentifiabilityError as e2:      # (the symmetric angles may still be rank deficient: not this refusal)
+        assert "C angle is not seen" not in str(e2)

@@ -122,3 +122,40 @@ def test_cli(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and msg in err and "Traceback" not in err, err
         assert not (tmp_path / "c.json").exists()
+
+
+def _rotary_log(targets_deg, dev_up, dev_down, unit="deg"):
+    """Two cycles of a positioning test, the same mean deviations each cycle (file unit)."""
+    from core.positioning import make_positioning_log
+
+    tg, cy, di, me = [], [], [], []
+    for c in (1, 2):
+        for d, dev in (("+", dev_up), ("-", dev_down)):
+            for t, e in zip(targets_deg, dev):
+                tg.append(t), cy.append(c), di.append(d), me.append(t + e)
+    return make_positioning_log(tg, cy, di, me, unit=unit, meta={"axis": "C" if unit == "deg" else "X"})
+
+
+def test_rotary_file_closes_the_turn():
+    """review33b F6 (its cpos.csv): C tested at 0, 90, 180, 270 deg. LinuxCNC looks the table up at the joint
+    command with no modulo (compute_screw_comp: linear between lines, end lines held; sim JointTable), so the
+    file of the four targets left 270-360 deg at 270's trim (+0.0005 deg forward) where the table comes back
+    to 0's place (+0.0001). The file now has a line at 360 deg with 0's deviations and one at -90 deg with
+    270's; the trim at 315 deg is halfway between 270's and 0's. Values: the review's log (6-decimal lines,
+    exact)."""
+    log = _rotary_log([0, 90, 180, 270], [0.0001, 0.0011, -0.0019, 0.0006], [-0.0001, 0.0009, -0.0021, 0.0004])
+    rows = _rows(positioning_comp_file(log))
+    assert positioning_comp_file(log).splitlines() == [
+        "-90.000000 -89.999400 -89.999600", "0.000000 0.000100 -0.000100", "90.000000 90.001100 90.000900",
+        "180.000000 179.998100 179.997900", "270.000000 270.000600 270.000400", "360.000000 360.000100 359.999900"]
+    tab = JointTable.from_type0(rows)          # (degrees here: the lookup is unit-free)
+    for d, at0, at270 in ((1, 0.0001, 0.0006), (-1, -0.0001, 0.0004)):
+        # trim = nominal - actual = minus the deviation
+        assert tab.trim(np.array([315.0]), d)[0] == pytest.approx(-(at0 + at270) / 2, abs=1e-12)
+        assert tab.trim(np.array([360.0]), d)[0] == pytest.approx(-at0, abs=1e-12)
+        assert tab.trim(np.array([-45.0]), d)[0] == pytest.approx(-(at0 + at270) / 2, abs=1e-12)
+    # a test over the whole turn (0 and 360 both targets) and a linear axis: no line added
+    full = _rotary_log([0, 120, 240, 360], [0.0001, 0.0002, 0.0003, 0.0001], [0.0, 0.0, 0.0, 0.0])
+    assert [r[0] for r in _rows(positioning_comp_file(full))] == [0.0, 120.0, 240.0, 360.0]
+    lin = _rotary_log([0, 90, 180, 270], [0.001] * 4, [0.0] * 4, unit="mm")
+    assert [r[0] for r in _rows(positioning_comp_file(lin))] == [0.0, 90.0, 180.0, 270.0]

@@ -278,3 +278,31 @@ def test_a_stopped_import_names_the_row_to_continue_from(plans, tmp_path, capsys
     assert main(["import", "linuxcnc", str(f), "--plan", str(plans / "plan5.csv"),
                  "--out", str(tmp_path / "l.csv")]) == 0
     assert "to continue: vmt machine program --from-row 3 (appends to this file: keep it)" in capsys.readouterr().out
+
+
+def test_header_says_which_way_a_positive_angle_turns(plans):
+    """review33b F3: the program's header says that +C turns the part by minus the angle (a table clockwise seen
+    from +Z, ISO 841) and suggests the dry check, and the plan it runs is so: the same target at C = 75 deg lies
+    at R(-75 deg) of its C = 0 position about the C line (nmv3000: through the origin), checked on the plan's
+    nominal points (tolerance 1e-9 mm: the plan prints shortest round-trip floats). An XYZ program has no such
+    lines (no rotary axis)."""
+    rc, text = program(plans, "plan5.csv")
+    assert rc == 0
+    head = text.split("\nM70\n")[0]
+    assert "(rotary axes A C: a positive angle is a right-handed turn of the tool relative to the part [ISO 841]:)" \
+        in head.splitlines()
+    assert "clockwise seen from the + end of X, Y, Z" in head and "turn C by +90" in head
+    assert "must turn clockwise seen from +Z, from above" in head
+    assert all(len(ln) <= 120 and ln.count("(") == 1 for ln in head.splitlines() if "rotary" in ln or "turn" in ln)
+    log = read_probe_log(plans / "plan5.csv")
+    tgt, setup = log.col("target"), log.col("setup")
+    p = np.column_stack([log.col("Xn_mm"), log.col("Yn_mm")])
+    c = np.radians(75.0)
+    turn = np.array([[np.cos(-c), -np.sin(-c)], [np.sin(-c), np.cos(-c)]])    # R(-C)
+    at0 = {t: p[i] for i, t in enumerate(tgt) if setup[i] == "C0"}
+    pairs = [(at0[t], p[i]) for i, t in enumerate(tgt) if setup[i] == "C75" and t in at0]
+    assert len(pairs) > 50
+    for p0, p75 in pairs:
+        np.testing.assert_allclose(p75, turn @ p0, atol=1e-9)
+    rc, text = program(plans, "plan3.csv")
+    assert rc == 0 and "rotary axes" not in text and "turn C by" not in text

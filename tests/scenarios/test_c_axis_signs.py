@@ -27,6 +27,12 @@ TOL_UM = 0.01
 def _identify(errors: dict, rotary_points=None, grid=(-0.110, 0.110, 0.022)):
     """A noise-free case-1 campaign (cross pocket at eq 19's angles, nmv3000) with ``errors`` only
     (``rotary_points``: the C axis's position in R, m; ``grid`` None: identify's own)."""
+    t, res, machine, _ = _identify_log(errors, rotary_points, grid)
+    return t, res, machine
+
+
+def _identify_log(errors: dict, rotary_points=None, grid=(-0.110, 0.110, 0.022)):
+    """:func:`_identify` and the probe log it identified."""
     from core.selfcal import Grid, self_calibrate
     from core.touches import from_log
     from scenarios.crosspocket import CROSS_ANGLES_DEG
@@ -44,7 +50,29 @@ def _identify(errors: dict, rotary_points=None, grid=(-0.110, 0.110, 0.022)):
                             np.random.default_rng(0), plan=make_plan(art), check_collisions=False)
     t = from_log(log.select(np.abs(log.col("nz")) < 0.01))
     g = None if grid is None else Grid.regular(*grid)
-    return t, self_calibrate(t, g, model_error=False), machine
+    return t, self_calibrate(t, g, model_error=False), machine, log
+
+
+def test_c_centre_of_a_c_carried_by_a_names_a():
+    """review33b F1: C's location errors are relative to A, which carries it (nmv3000 V[w-C-A-b-...]):
+    EY0A = +10 um alone, EX0C = EY0C = 0, moves C's line in R by +10 um in Y, so the circle's centre is
+    (0, -10) um (review33b's end to end run with 0.02 um noise: (-0.02, -9.998)), and the note on the centre,
+    as vmt identify writes it with the log's chain, names EY0A and where it puts the centre; main's note said
+    the centre is minus (EX0C, EY0C), which is (0, 0) here. Tolerance TOL_UM (module docstring)."""
+    from scenarios.identify_report import identify_record, identify_report
+    from scenarios.reports import c_axis_centre_um
+    from sim.errorfuncs import Constant
+
+    t, res, machine, log = _identify_log({"EY0A": Constant(10 * UM)})
+    np.testing.assert_allclose(c_axis_centre_um(res), [0.0, -10.0], atol=TOL_UM)
+    rep = identify_report(res, None, identify_record(log))
+    note = [n for n in rep["conventions"]["notes"] if n.startswith("EXC, EYC")]
+    assert len(note) == 1 and "C rides on A" in note[0] and "EY0A alone puts the centre at (0, -EY0A)" in note[0]
+    assert "d_A = (0, EY0A, EZ0A)" in note[0]
+    # a log without a chain: the note says in words that the carrier adds to the line
+    rep = identify_report(res, None, {**identify_record(log), "chain": None})
+    note = [n for n in rep["conventions"]["notes"] if n.startswith("EXC, EYC")][0]
+    assert "on a C carried by another axis" in note and "relative to the axis carrying it" in note
 
 
 @pytest.mark.parametrize("ex0c_um, ey0c_um", [(12.0, 0.0), (-5.0, 9.0)])

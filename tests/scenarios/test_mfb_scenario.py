@@ -7,6 +7,7 @@ import numpy as np
 
 import pytest
 
+from core import iso
 from core.exceptions import PlanError
 from core.units import MM
 
@@ -45,6 +46,7 @@ def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path, capsys):
     assert d["collision_check"]["passed"] and d["collision_check"]["touches"] == d["touches"]
     assert set(d["collision_check"]["fixtures"]) == {"X2", "Y2", "VY", "VX", "DXZ", "AXZ", "DYZ", "AYZ"}
     assert d["twists"] == {}  # (the twists' sensing is the 5-axis plan's: TWIST_SENSING)
+    assert "not_compensated" not in d and "note: not compensated" not in said   # no rotary axis on vmc-3axis
     for e in d["errors"].values():
         assert {"injected", "identified", "u95"} <= set(e)
     # the files: LinuxCNC TYPE 0 (nominal, forward, reverse, mm, ascending, at
@@ -221,7 +223,7 @@ def test_u95_covers_the_truth_and_is_useful():
         assert max(U[k]) < b, (k, max(U[k]))
 
 
-def test_5axis_cli_noise_free(tmp_path):
+def test_5axis_cli_noise_free(tmp_path, capsys):
     # vmt scenario mfb-5axis: the Mikron UCP710 (table C on A, linear axes on
     # the tool): 4 bar placements on the table presented by A and C in 12
     # set-ups, 15 measurements (13 and 17 until session 26's refit within the
@@ -233,9 +235,21 @@ def test_5axis_cli_noise_free(tmp_path):
     # issue 6 targets 0.1 um / 0.5 urad.
     from scenarios.cli import main
 
-    out = tmp_path / "mfb5.json"
-    assert main(["scenario", "mfb-5axis", "--json", str(out), "--noise-um", "0", "--mc", "0"]) == 0
+    out, comp = tmp_path / "mfb5.json", tmp_path / "comp"
+    assert main(["scenario", "mfb-5axis", "--json", str(out), "--noise-um", "0", "--mc", "0",
+                 "--comp", str(comp)]) == 0
     d = json.loads(out.read_text())
+    # review33b F2: the outputs say that the rotary axes' errors are neither identified nor compensated (they
+    # were silent: only the module docstring said the set-ups' poses absorb them); the 21 linear errors alone
+    # are in the tables
+    rot = [s.name for a in "AC" for s in iso.symbols_of_axis(a)]
+    for doc in (d, json.loads((comp / "mfb-5axis-comp.json").read_text())):
+        nc = doc["not_compensated"]
+        assert nc["axes"] == ["A", "C"] and sorted(nc["errors"]) == sorted(rot) and len(rot) == 20
+        assert "not identified" in nc["why"] and "absorbs" in nc["why"]
+    assert not set(rot) & set(d["errors"])
+    said = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("note: not compensated")]
+    assert len(said) == 1 and "rotary axes A, C (20 errors" in said[0]
     assert d["machine"] == "mikron-ucp710" and d["measurements"] == 15 and d["placements"] == 4
     assert d["setups"] == 12 and len(d["errors"]) == 21
     c = d["collision_check"]
@@ -1591,3 +1605,20 @@ def test_comp_line_beyond_the_strokes_is_refused_naming_the_axis(mfb3_noise_free
                                           r"readings -50\.\.400 mm \(stylus T0\)"):
         comp_line_m("0,0,401", r)
     comp_line_m("0,0,400", r)
+def test_plan_5axis_docstring_says_what_the_plan_does():
+    """review33b F5: the docstring said 13 set-ups and 17 measurements, X3 on TY1 and VX on TX1, TX2, TXL
+    (dJ_X 50 mm), the plan before session 26/27; its counts, X3's and VX's styli and the arm difference are
+    read here from the plan itself (STYLI_5AXIS: TX3's arm 250 mm against TX1's 100 mm)."""
+    import scenarios.mfb as S
+
+    p = S.plan_5axis()
+    doc = " ".join(S.plan_5axis.__doc__.split())
+    n_set, n_meas = len({m.setup for m in p.measurements}), len(p.measurements)
+    assert (n_set, n_meas) == (12, 15)
+    assert f"4 bar placements, {n_set} rotary set-ups, {n_meas} measurements" in doc
+    st = {m.name: m.stylus for m in p.measurements}
+    assert st["X3"] == "TYM" and "X3 (A = -90, C = 0, TYM)" in doc
+    assert [st[k] for k in ("VXa", "VXb", "VXc")] == ["TX1", "TX3", "TXL"] and "VX (A = -90; TX1 and TX3" in doc
+    dJx = abs(S.STYLI_5AXIS["TX3"][0] - {**S.STYLI, **S.STYLI_5AXIS}["TX1"][0]) * 1e3
+    assert dJx == pytest.approx(150.0) and "dJ_X 150 mm between TX1 and TX3" in doc
+    assert "TX2" not in doc and "TY1)" not in doc and "dJ_X 50 mm" not in doc
