@@ -8,7 +8,9 @@ column names; :func:`core.touches.from_log` turns a log into SI arrays.
 Reading validates everything the spec promises and raises
 :class:`~core.exceptions.ProbeLogError` with a one-line message naming the
 file, the data row (0-based, as ``outlier_rows`` counts) and the file line.
-Writing is lossless (floats as their shortest round-trip repr) and atomic
+Writing is lossless (floats as their shortest round-trip repr; a column read or
+recorded at a printing step, a controller's 3-decimal readings, to that step's
+decimals, declared column by column: :data:`NUMBER_FORMAT_DECIMALS`) and atomic
 (a temporary file renamed into place).
 """
 

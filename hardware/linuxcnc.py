@@ -36,7 +36,9 @@ values first (``DEBUG``), and its header says so.
 G-code words, as LinuxCNC's ``smartprobe.ngc`` writes them with
 ``(LOG,G1 X#5061 Y#5062 Z#5063)``: every line must carry X, Y and Z words,
 and may carry the plan row (``N``). :func:`import_probe_file` merges it
-with the plan into a full ``probe-log/1``: numbered lines go to their rows
+with the plan into a full ``probe-log/1`` (its X, Y, Z declared printed to the
+decimals the file wrote them with, session 33; a file in inches: exact, as
+before): numbered lines go to their rows
 (which must be 0, 1, 2, ...), others in plan order, and every line must lie
 on its row's approach line, else the file is refused naming the line. A
 file shorter than the plan is the record of a run that

@@ -8,6 +8,11 @@ repeats the last probe and is skipped. A line that starts like a probe
 report but is not one is an error naming the line: garbage is never taken
 for a position.
 
+The decimals the reports print X, Y, Z with (GRBL 1.1h in mm: 3) are read
+from the text (:func:`report_decimals`) and declared as the log's step for
+those columns (``number_format``'s ``decimals``, session 33): ``vmt fit``
+floors its U95 on them.
+
 Reports are read as millimetres. GRBL reports inches, ``[PRB:...]`` too,
 when its setting ``$13`` (report inches) is 1: a transcript that shows
 ``$13=1`` (its ``$$`` dump, or the setting sent) before a probe report is
