@@ -355,8 +355,14 @@ class ProbeLog:
         For each column of :data:`TEXT_STEP_COLUMNS` read from text: the step
         it was printed to, ``10^-k`` for the most decimals ``k`` written in
         the column (``10.0000000``: 1e-7, whatever its values; ``10``: 1):
-        the precision the file declares by its digits. Empty for a log built
-        in memory (:func:`make_log`): its values alone say their step.
+        the precision the file declares by its digits; 0 (exact) where the file
+        declares its numbers exact, and ``10^-K`` for each column the
+        ``number_format`` line declares printed to ``K`` decimals
+        (:data:`NUMBER_FORMAT_DECIMALS`, any numeric column). Empty for a log
+        built in memory (:func:`make_log`): its values alone say their step;
+        an import sets the controller's (``hardware.campaign.log_from_plan``).
+        The writer prints each column of a step to its decimals and declares it
+        (:func:`fixed_decimals`).
 
     Columns the spec defines are numeric (except ``setup``, ``target``,
     ``feature``, ``status``); a column the spec does not define is numeric

@@ -25,6 +25,11 @@ second writer is refused with a message naming the log, so two
 number of complete rows on disk (:func:`recover_log`; a torn last line is
 cut off). A touch made but not yet on disk when the process died is made
 again on resume: the log never holds a touch twice and never misses one.
+Its ``number_format`` line (session 33; before, none) declares X_mm, Y_mm,
+Z_mm printed to the decimals the controller prints (a GRBL's status report,
+read at the start: 3), the plan's columns at the plan's steps, every other
+number exact (:func:`log_decimals`); rows are written so, a resumed log's
+by its own line.
 
 A resume also needs the machine frame the log was made in: a controller
 reset between the sessions (opening an Arduino GRBL's serial port resets it)
