@@ -159,3 +159,36 @@ def test_linuxcnc_import_declares_the_files_decimals(tmp_path, plan_path, kind, 
     else:
         assert nf == f"# number_format: shortest round-trip; {declared}"
         assert {log.text_steps[c] for c in XYZ} == {10.0 ** -int(declared[-1])}
+
+
+def test_a_log_vmt_probe_began_before_session_33_is_resumed_as_it_was(tmp_path, plan_path, capsys):
+    """A campaign log without the line (``vmt probe`` wrote none before session 33; its readings their shortest
+    round-trip, ``10.0``) is resumed in its own format: the rows appended as they were, no line added, and the
+    file read from its digits as before."""
+    out = tmp_path / "old.csv"
+    emu, srv = serve(Faults(drop_before_probe=(6,)))
+    try:
+        assert main(probe_args(srv.url, plan_path, out)) == 2
+        lines = out.read_text().splitlines(True)
+        old = [x for x in lines if not x.startswith("# number_format:")]
+        k = old.index(next(x for x in old if x.startswith("setup,")))
+        cols = old[k].strip().split(",")
+        for i in range(k + 1, len(old)):                              # the rows as the old writer wrote them
+            cells = old[i].rstrip("\n").split(",")
+            for c in XYZ:
+                j = cols.index(c)
+                cells[j] = repr(float(cells[j]))
+            old[i] = ",".join(cells) + "\n"
+        out.write_text("".join(old))
+        assert main(probe_args(srv.url, plan_path, out, "--resume")) == 0
+    finally:
+        srv.stop()
+    text = out.read_text()
+    assert "number_format" not in text and text.startswith("".join(old))
+    new_rows = text[len("".join(old)):].splitlines()
+    assert len(new_rows) == 7
+    for c in XYZ:          # the appended readings in the old form: the shortest round-trip repr, not 3 fixed decimals
+        j = cols.index(c)
+        assert all(r.split(",")[j] == repr(float(r.split(",")[j])) for r in new_rows)
+    assert any(r.split(",")[cols.index("X_mm")] in ("10.0", "90.0") for r in old[k + 1:])   # repr, as before
+    assert read_probe_log(out).n == 12
