@@ -1263,8 +1263,8 @@ def fixed_decimals(log: ProbeLog) -> dict[str, int]:
     out = {}
     for k in _ordered(dict(log.columns)):
         d = step_decimals(log.text_steps.get(k))
-        if d is not None and not _is_text_column(k, log.columns[k]):
-            out[k] = d
+        if d is not None and not _is_text_column(k, log.columns[k]) and not any(ch in k for ch in ",=;"):
+            out[k] = d  # (a name the line cannot hold, ``a;b``, is written whole: exact)
     return out
 
 
