@@ -8,7 +8,9 @@ column names; :func:`core.touches.from_log` turns a log into SI arrays.
 Reading validates everything the spec promises and raises
 :class:`~core.exceptions.ProbeLogError` with a one-line message naming the
 file, the data row (0-based, as ``outlier_rows`` counts) and the file line.
-Writing is lossless (floats as their shortest round-trip repr) and atomic
+Writing is lossless (floats as their shortest round-trip repr; a column read or
+recorded at a printing step, a controller's 3-decimal readings, to that step's
+decimals, declared column by column: :data:`NUMBER_FORMAT_DECIMALS`) and atomic
 (a temporary file renamed into place).
 """
 
@@ -106,6 +108,72 @@ TEXT_DECIMALS_MAX = 12
 #: read ``160.0`` as printed to 0.1 mm and its rank tolerance as ``10 x 0.1 mm / L`` (0.01 at L = 100 mm).
 #: A file edited by hand keeps the line only if its numbers still are what it says.
 NUMBER_FORMAT_KEY, NUMBER_FORMAT_EXACT = "number_format", "shortest round-trip"
+#: Session 33 (step33): the same line names the columns printed to fixed decimals, the rest exact as above:
+#: ``# number_format: shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3`` is a log whose measured tip centres
+#: are a GRBL controller's ``[PRB:...]`` numbers (printed to 1 um) and every other number exact. The reader takes
+#: each named column's step as ``10^-K`` (:attr:`ProbeLog.text_steps`, whatever its digits: ``10.0`` in a column
+#: declared to 3 decimals is 10 printed to 1 um), refuses a cell with more decimals than its column declares, a
+#: column the header lacks, a text column and a K that is not a whole number from 0 to :data:`TEXT_DECIMALS_MAX`;
+#: the writer writes those columns to K decimals and declares them so. Before, the line had one word for the whole
+#: file: ``vmt import`` and ``vmt probe`` logs declared a controller's 3-decimal readings exact (``vmt fit`` then
+#: floored no U95 on their rounding), and a log written with fixed decimals in some columns dropped the line, so
+#: its other columns' shortest round-trip digits read as a step (``160.0`` as 0.1 mm). A reader of an earlier
+#: session reads such a line as other words (not its own: every column from its digits, as it read the files its
+#: own writer wrote with fixed decimals).
+NUMBER_FORMAT_DECIMALS = "decimals"
+
+
+def number_format_value(fixed: Mapping[str, int] | None = None) -> str:
+    """The ``number_format`` line's value for a log whose columns ``fixed`` (name -> decimals) are printed to
+    fixed decimals and every other number exact (:data:`NUMBER_FORMAT_DECIMALS`)."""
+    if not fixed:
+        return NUMBER_FORMAT_EXACT
+    for k, d in fixed.items():
+        if not k or any(ch in k for ch in ",=;") or k != k.strip() or not (0 <= int(d) <= TEXT_DECIMALS_MAX):
+            raise ValueError(f"cannot declare column {k!r} printed to {d!r} decimals")
+    return (f"{NUMBER_FORMAT_EXACT}; {NUMBER_FORMAT_DECIMALS} "
+            + ", ".join(f"{k}={int(d)}" for k, d in fixed.items()))
+
+
+def parse_number_format(value: str, header, src: str, ln: int | None = None,
+                        text_columns=()) -> tuple[bool, dict]:
+    """``(exact, fixed)`` of a ``number_format`` value: ``exact`` True for vmt's own words
+    (:data:`NUMBER_FORMAT_EXACT`, any case), ``fixed`` the columns it names printed to fixed decimals
+    (:data:`NUMBER_FORMAT_DECIMALS`; name -> decimals). Other words: ``(False, {})``, not taken (the digits say
+    the precision, as before). Raises :class:`~core.exceptions.ProbeLogError` (one line naming the file and the
+    metadata line ``ln``) for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
+    column ``header`` lacks or one of ``text_columns``, a column named twice, a K that is not a whole number from
+    0 to :data:`TEXT_DECIMALS_MAX`."""
+    head, sep, tail = value.strip().partition(";")
+    if head.strip().lower() != NUMBER_FORMAT_EXACT:
+        return False, {}
+    if not sep:
+        return True, {}
+    at = f"{src}: " + (f"line {ln}: " if ln is not None else "") + f"metadata {NUMBER_FORMAT_KEY}"
+    word, _, items = tail.strip().partition(" ")
+    if word.lower() != NUMBER_FORMAT_DECIMALS or not items.strip():
+        raise ProbeLogError(f"{at} {_shown(value, 60)}: after '{NUMBER_FORMAT_EXACT};' expected "
+                            f"'{NUMBER_FORMAT_DECIMALS} COLUMN=K, ...' (the columns printed to K decimals)")
+    fixed: dict = {}
+    cols = set(header)
+    for item in items.split(","):
+        name, eq, k = (x.strip() for x in item.partition("="))
+        if not name or not eq:
+            raise ProbeLogError(f"{at}: {_shown(item.strip())} is not COLUMN=K (a column printed to K decimals)")
+        if name not in cols:
+            raise ProbeLogError(f"{at}: {NUMBER_FORMAT_DECIMALS} names column {name!r}, which the header does not "
+                                "have")
+        if name in text_columns:
+            raise ProbeLogError(f"{at}: {NUMBER_FORMAT_DECIMALS} names column {name!r}, which holds text, not "
+                                "numbers")
+        if name in fixed:
+            raise ProbeLogError(f"{at}: {NUMBER_FORMAT_DECIMALS} names column {name!r} twice")
+        if not re.fullmatch(r"[0-9]{1,3}", k) or int(k) > TEXT_DECIMALS_MAX:
+            raise ProbeLogError(f"{at}: {name}={_shown(k)}: the decimals must be a whole number from 0 to "
+                                f"{TEXT_DECIMALS_MAX} (more are full precision: leave the column out, it is "
+                                "then exact)")
+        fixed[name] = int(k)
+    return True, fixed
 
 _MORE_DECIMALS: dict = {}
 #: a number's exponent, read after its letter (the letter found by str.find: on the 1e6-row bench log, whose repr
@@ -287,8 +355,14 @@ class ProbeLog:
         For each column of :data:`TEXT_STEP_COLUMNS` read from text: the step
         it was printed to, ``10^-k`` for the most decimals ``k`` written in
         the column (``10.0000000``: 1e-7, whatever its values; ``10``: 1):
-        the precision the file declares by its digits. Empty for a log built
-        in memory (:func:`make_log`): its values alone say their step.
+        the precision the file declares by its digits; 0 (exact) where the file
+        declares its numbers exact, and ``10^-K`` for each column the
+        ``number_format`` line declares printed to ``K`` decimals
+        (:data:`NUMBER_FORMAT_DECIMALS`, any numeric column). Empty for a log
+        built in memory (:func:`make_log`): its values alone say their step;
+        an import sets the controller's (``hardware.campaign.log_from_plan``).
+        The writer prints each column of a step to its decimals and declares it
+        (:func:`fixed_decimals`).
 
     Columns the spec defines are numeric (except ``setup``, ``target``,
     ``feature``, ``status``); a column the spec does not define is numeric
@@ -603,7 +677,7 @@ class _Columns:
     first would (rows' widths, then columns in header order).
     """
 
-    def __init__(self, header: list[str], src: str):
+    def __init__(self, header: list[str], src: str, declared: Mapping[str, int] | None = None):
         self.header, self.src = header, src
         self.kind = ["text" if _is_text(h) else "num" if _spec_numeric(h) else "unknown" for h in header]
         self.parts: list[list] = [[] for _ in header]
@@ -612,8 +686,13 @@ class _Columns:
         self.lines: list[np.ndarray] = []
         self.n = 0
         want = TEXT_STEP_COLUMNS or ()
-        #: the most decimals written so far in each column whose step is recorded (None: no number yet)
-        self.decimals: dict[int, int | None] = {j: None for j, h in enumerate(header) if h in want}
+        declared = dict(declared or {})
+        #: the most decimals written so far in each column whose step is recorded or declared (None: no number yet)
+        self.decimals: dict[int, int | None] = {j: None for j, h in enumerate(header) if h in want or h in declared}
+        #: the decimals the metadata declares, by column index (``number_format``'s ``decimals``), and the first cell
+        #: found with more (its message; raised after the rows' and the numbers' own errors)
+        self.declared: dict[int, int] = {j: declared[h] for j, h in enumerate(header) if h in declared}
+        self.declared_error: str | None = None
 
     def _text(self, j: int, cells) -> list:
         pool = self.pools[j]
@@ -674,10 +753,22 @@ class _Columns:
                 if v is not None:
                     self.parts[j].append(v)
                     if j in self.decimals:
-                        d, k = self.decimals[j], most_decimals(cells)
-                        self.decimals[j] = k if d is None else d if k is None else max(d, k)
+                        self._count(j, cells, self.n, ln)
         self.lines.append(ln)
         self.n += len(rows)
+
+    def _count(self, j: int, cells, row0: int, lines: np.ndarray) -> None:
+        """Count the decimals of a block of column ``j``'s cells (rows from ``row0``, file ``lines``); a cell
+        with more than the column declares is kept as :attr:`declared_error` (the first one met)."""
+        d, k = self.decimals[j], most_decimals(cells)
+        self.decimals[j] = k if d is None else d if k is None else max(d, k)
+        want = self.declared.get(j)
+        if want is not None and k is not None and k > want and self.declared_error is None:
+            r = next(i for i, c in enumerate(cells) if (most_decimals([c]) or 0) > want)
+            self.declared_error = (
+                f"{self.src}: row {row0 + r} (line {lines[r]}): column {self.header[j]!r}: {_shown(cells[r].strip())} "
+                f"has more decimals than the {want} the metadata {NUMBER_FORMAT_KEY} declares for the column: "
+                "correct the line (or the number)")
 
     def columns(self) -> dict[str, np.ndarray]:
         """The columns, or the first column's first error (``ProbeLogError``)."""
@@ -689,12 +780,17 @@ class _Columns:
             part = self.parts[j]
             if self.kind[j] == "unknown":
                 if _text_cells(part):
+                    if j in self.declared:
+                        raise ProbeLogError(f"{self.src}: metadata {NUMBER_FORMAT_KEY}: {NUMBER_FORMAT_DECIMALS} "
+                                            f"names column {name!r}, which holds text, not numbers")
                     cols[name] = np.array(self._text(j, part), dtype=object)
                 else:
                     v = self._numbers(j, part, 0, lines)
                     if v is None:  # pragma: no cover - _text_cells let no bad cell through
                         raise ProbeLogError(self.error[j])
                     cols[name] = v
+                    if j in self.decimals:
+                        self._count(j, part, 0, lines)
             elif self.kind[j] == "text":
                 cols[name] = np.concatenate(part) if part else np.array([], dtype=object)
             else:
@@ -705,9 +801,15 @@ class _Columns:
     def line_of_row(self) -> np.ndarray:
         return np.concatenate(self.lines) if self.lines else np.empty(0, dtype=np.int64)
 
-    def steps(self) -> dict[str, float]:
-        """The step each recorded column was printed to (:attr:`ProbeLog.text_steps`)."""
-        return {self.header[j]: 10.0 ** -d for j, d in self.decimals.items() if d is not None}
+    def steps(self, exact: bool = False) -> dict[str, float]:
+        """The step each recorded column was printed to (:attr:`ProbeLog.text_steps`): a declared column's
+        declared step (``10^-K``), every other column of :data:`TEXT_STEP_COLUMNS` that holds a number the step
+        of its most decimals, or 0 where the file declares its numbers ``exact`` (:data:`NUMBER_FORMAT_KEY`)."""
+        want = TEXT_STEP_COLUMNS or ()
+        out = {self.header[j]: 0.0 if exact else 10.0 ** -d for j, d in self.decimals.items()
+               if d is not None and self.header[j] in want and j not in self.declared}
+        out.update({self.header[j]: 10.0 ** -k for j, k in self.declared.items()})
+        return out
 
 
 #: The metadata keys whose value changes how vmt reads a log (probe log and positioning log): a key given twice with
@@ -798,7 +900,10 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         raise ProbeLogError(f"{src}: missing required column {missing[0]!r}"
                             + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
     width = len(header)
-    cols = _Columns(header, src)
+    declared = meta.pop(NUMBER_FORMAT_KEY, None)  # (the file's text, not the log's content: a round trip equal)
+    exact, fixed = (False, {}) if declared is None else parse_number_format(
+        declared, header, src, meta_line.get(NUMBER_FORMAT_KEY), TEXT_COLUMNS)
+    cols = _Columns(header, src, fixed)
     block: list[list[str]] = []
     block_lines: list[int] = []
     last_row, last_ln, last_end = None, 0, 0
@@ -844,11 +949,11 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         if w is not None:
             warnings.append(w)
     line_of_row = cols.line_of_row()
-    steps = cols.steps()
-    declared = meta.pop(NUMBER_FORMAT_KEY, None)  # (the file's text, not the log's content: a round trip equal)
-    if declared is not None and declared.strip().lower() == NUMBER_FORMAT_EXACT:  # every number exact as written
-        steps = {k: 0.0 for k in steps}
-    log = ProbeLog(meta=meta, columns=cols.columns(), source=src, warnings=tuple(warnings), text_steps=steps)
+    columns = cols.columns()
+    if cols.declared_error is not None:
+        raise ProbeLogError(cols.declared_error)
+    steps = cols.steps(exact)  # every number exact as written but the columns declared to fixed decimals
+    log = ProbeLog(meta=meta, columns=columns, source=src, warnings=tuple(warnings), text_steps=steps)
     log = replace(log, unit_steps=_validate(log, lines=line_of_row, warnings=warnings))
     if len(warnings) > len(log.warnings):
         log = replace(log, warnings=tuple(warnings))
@@ -1149,6 +1254,29 @@ def _column_cells(name: str, v: np.ndarray, decimals: int | None = None) -> list
     return cells
 
 
+def fixed_decimals(log: ProbeLog) -> dict[str, int]:
+    """The columns the writer prints to fixed decimals, name -> decimals: each numeric column of ``log`` whose
+    :attr:`ProbeLog.text_steps` is a step ``10^-K`` (K from 0 to :data:`TEXT_DECIMALS_MAX` - 1), in the log's
+    column order. A step of 0 (exact) or of :data:`TEXT_DECIMALS_MAX` decimals (the most the reader counts: a
+    shortest round-trip repr read without the declaration) is written as its shortest round-trip repr, every digit
+    of the double, and declared exact (before session 33 such a column was cut to 12 decimals)."""
+    out = {}
+    for k in _ordered(dict(log.columns)):
+        d = step_decimals(log.text_steps.get(k))
+        if d is not None and not _is_text_column(k, log.columns[k]) and not any(ch in k for ch in ",=;"):
+            out[k] = d  # (a name the line cannot hold, ``a;b``, is written whole: exact)
+    return out
+
+
+def step_decimals(q: float | None) -> int | None:
+    """The decimals a column printed to the step ``q`` is written with (:func:`fixed_decimals`): ``K`` for
+    ``q = 10^-K`` up to :data:`TEXT_DECIMALS_MAX` - 1 decimals; None (written exact) for no step, 0 or finer."""
+    if q is None or not q > 0:
+        return None
+    d = max(0, int(round(-math.log10(q))))
+    return d if d < TEXT_DECIMALS_MAX else None
+
+
 def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -> Iterator[str]:
     """The file text of ``log`` in pieces: metadata and header, then blocks of rows.
 
@@ -1159,13 +1287,10 @@ def iter_probe_log_text(log: ProbeLog, rows_per_block: int = WRITE_BLOCK_ROWS) -
     buf = io.StringIO()
     meta = dict(log.meta)
     meta.setdefault("format", FORMAT)
-    # a log read from a file printed to a step: those columns written to the same decimals (the digits say it, as
-    # they did); else every number repr, the digits shown not a precision: declared (NUMBER_FORMAT_EXACT)
-    fixed = {k: int(round(-math.log10(q))) for k, q in log.text_steps.items() if q > 0}
-    if fixed:
-        meta.pop(NUMBER_FORMAT_KEY, None)
-    else:
-        meta[NUMBER_FORMAT_KEY] = NUMBER_FORMAT_EXACT
+    # the columns of a step (a log read from a file printed to one, a controller's readings) written to its
+    # decimals and declared so; every other number repr, the digits shown not a precision: declared exact
+    fixed = fixed_decimals(log)
+    meta[NUMBER_FORMAT_KEY] = number_format_value(fixed)
     meta = {"format": meta.pop("format"), **meta}
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")

@@ -136,6 +136,9 @@ class ProbeResult:
         numbers), ``None`` for a backend that measures in metres: the log
         writes these, so a report's ``-3.937`` is not logged
         ``-3.9369999999999994`` after the trip through metres.
+    reported_decimals : int or None
+        The most decimals the controller printed ``reported_mm`` with (GRBL: 3), the step its log
+        declares for X_mm, Y_mm, Z_mm (session 33); None with ``reported_mm`` None.
     """
 
     status: str
@@ -143,6 +146,7 @@ class ProbeResult:
     alarm: int | None = None
     extra_axes: tuple = field(default=())
     reported_mm: np.ndarray | None = None
+    reported_decimals: int | None = None
 
     @property
     def triggered(self) -> bool:

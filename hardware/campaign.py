@@ -25,6 +25,11 @@ second writer is refused with a message naming the log, so two
 number of complete rows on disk (:func:`recover_log`; a torn last line is
 cut off). A touch made but not yet on disk when the process died is made
 again on resume: the log never holds a touch twice and never misses one.
+Its ``number_format`` line (session 33; before, none) declares X_mm, Y_mm,
+Z_mm printed to the decimals the controller prints (a GRBL's status report,
+read at the start: 3), the plan's columns at the plan's steps, every other
+number exact (:func:`log_decimals`); rows are written so, a resumed log's
+by its own line.
 
 A resume also needs the machine frame the log was made in: a controller
 reset between the sessions (opening an Arduino GRBL's serial port resets it)
@@ -42,14 +47,15 @@ import io
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError, counted
-from core.probelog import FORMAT, MEASURED, ProbeLog, parse_probe_log
+from core.probelog import (FORMAT, MEASURED, NUMBER_FORMAT_KEY, TEXT_COLUMNS, ProbeLog, number_format_value,
+                           parse_number_format, parse_probe_log, step_decimals)
 from core.units import MM
 
 from .backend import ALARMS, ProbeResult
@@ -362,11 +368,32 @@ def log_columns(plan: ProbeLog, temps: list[str]) -> list[str]:
     return cols
 
 
-def _cell(v) -> str:
+def _cell(v, decimals: int | None = None) -> str:
+    """A cell of a campaign log: text as is, a number as its shortest round-trip repr, or to ``decimals`` fixed
+    decimals in a column the log declares so (``number_format``), NaN empty."""
     if isinstance(v, str):
         return v
     v = float(v)
-    return "" if math.isnan(v) else repr(v)
+    return "" if math.isnan(v) else repr(v) if decimals is None else f"{v:.{int(decimals)}f}"
+
+
+#: The measured tip centres: the columns a controller's reports fill (:func:`log_decimals`).
+MEASURED_XYZ = ("X_mm", "Y_mm", "Z_mm")
+
+
+def log_decimals(plan: ProbeLog, columns, measured: int | None) -> dict[str, int]:
+    """The columns a campaign log of ``plan`` prints to fixed decimals (``number_format``, session 33), in the
+    order of ``columns``: the plan's columns printed to a step (a plan read from a file printed so: its
+    :attr:`~core.probelog.ProbeLog.text_steps`; vmt's own plans are exact), and X_mm, Y_mm, Z_mm to the
+    ``measured`` decimals the controller printed its reports with (None: exact, a backend measuring in
+    metres). Every other column (``t_s``, temperatures) is exact."""
+    out = {}
+    for c in columns:
+        d = (measured if c in MEASURED_XYZ else None if c in MEASURED
+             else step_decimals(plan.text_steps.get(c)))
+        if d is not None:
+            out[c] = int(d)
+    return out
 
 
 def _csv_line(cells: list[str]) -> str:
@@ -413,13 +440,15 @@ class AppendLog:
     :func:`open_locked` when the lock was taken before recovering).
     """
 
-    def __init__(self, path: Path, columns: list[str], fd: int | None = None):
+    def __init__(self, path: Path, columns: list[str], fd: int | None = None, decimals: dict | None = None):
         self.path = Path(path)
         self.columns = list(columns)
+        #: the columns written to fixed decimals, as the log's ``number_format`` line declares them
+        self.decimals = dict(decimals or {})
         self.fd = open_locked(self.path) if fd is None else fd
 
     @classmethod
-    def create(cls, path, columns: list[str], meta: dict) -> "AppendLog":
+    def create(cls, path, columns: list[str], meta: dict, decimals: dict | None = None) -> "AppendLog":
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
         text = "".join(f"# {k}: {' '.join(str(v).split())}\n" for k, v in meta.items())
@@ -440,11 +469,12 @@ class AppendLog:
         finally:
             os.unlink(tmp)
         _fsync_dir(p.parent)
-        return cls(p, columns, fd=fd)
+        return cls(p, columns, fd=fd, decimals=decimals)
 
     def append(self, row: dict) -> None:
-        """Write one touch (``{column: value}``; missing columns empty) and fsync."""
-        data = _csv_line([_cell(row.get(c, "")) for c in self.columns]).encode("utf-8")
+        """Write one touch (``{column: value}``; missing columns empty; the columns of :attr:`decimals` to their
+        fixed decimals) and fsync."""
+        data = _csv_line([_cell(row.get(c, ""), self.decimals.get(c)) for c in self.columns]).encode("utf-8")
         n = os.write(self.fd, data)
         if n != len(data):  # pragma: no cover - a full disk
             raise HardwareError(f"{self.path}: short write ({n} of {len(data)} bytes)")
@@ -490,6 +520,10 @@ class Recovered:
     meta: dict
     last_t_s: float
     torn_bytes: int
+    #: the columns the log declares printed to fixed decimals (its ``number_format`` line; session 33), appended
+    #: so; empty for a log ``vmt probe`` began before session 33 (no such line: its rows appended as they were,
+    #: shortest round-trip)
+    decimals: dict = field(default_factory=dict)
 
 
 def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
@@ -554,7 +588,21 @@ def recover_log(path, plan: ProbeLog, *, locked: bool = False) -> Recovered:
             os.fsync(f.fileno())
     t = log.columns["t_s"]
     t = t[~np.isnan(t)]
-    return Recovered(log.n, columns, dict(log.meta), float(t.max()) if t.size else 0.0, torn)
+    return Recovered(log.n, columns, dict(log.meta), float(t.max()) if t.size else 0.0, torn,
+                     _declared(text, columns, p))
+
+
+def _declared(text: str, columns: list, src) -> dict:
+    """The columns the log's ``number_format`` line declares printed to fixed decimals (none without it)."""
+    for line in text.splitlines():
+        if not line.strip():
+            continue
+        if not line.startswith("#"):
+            break
+        k, colon, v = line[1:].partition(":")
+        if colon and k.strip() == NUMBER_FORMAT_KEY:
+            return parse_number_format(v, columns, str(src), None, TEXT_COLUMNS)[1]
+    return {}
 
 
 # ---------------------------------------------------------------------------
@@ -695,6 +743,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
             raise
         last_t = rec.last_t_s
         temps = [c[5:-2] for c in columns if c.startswith("temp_") and c.endswith("_C")]
+        decimals = rec.decimals
     else:
         done, last_t, started = 0, 0.0, None
     statuses: dict[str, int] = {}
@@ -743,9 +792,13 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                      "plan": plan_path or plan.source, "started_unix": repr(started),
                      "probe_feed_mm_min": settings.probe_feed_mm_min,
                      "clearance_mm": settings.clearance_mm, "overtravel_mm": settings.overtravel_mm})
-        log = AppendLog.create(p, columns, meta)
+        # the controller's printing step on X, Y, Z (GRBL: its status report's decimals, as its [PRB:...] prints
+        # them), the plan's on its columns, every other number exact: said in the log (session 33)
+        decimals = log_decimals(plan, columns, getattr(backend, "report_decimals", None))
+        meta[NUMBER_FORMAT_KEY] = number_format_value(decimals)
+        log = AppendLog.create(p, columns, meta, decimals)
     else:
-        log = AppendLog(p, columns, fd=fd)
+        log = AppendLog(p, columns, fd=fd, decimals=decimals)
     try:
         cur = backend.position_m() / MM
         # the one planner of every writer (motion: the program, the dry run); where the rotary axes stand is not
@@ -763,6 +816,17 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                 # the controller's own digits when it reported mm (a trip through metres moves the last one)
                 x = (np.asarray(res.reported_mm, dtype=float) if res.reported_mm is not None
                      else np.asarray(res.pos_m, dtype=float) / MM)
+                # a report printed to more decimals than the log declares would be cut to them: refused, nothing
+                # written (a log the first run declared exact, begun on a backend measuring in metres, takes
+                # the report's repr, every digit: its declaration then understates the step, as before session 33)
+                printed = getattr(res, "reported_decimals", None) if res.reported_mm is not None else None
+                want = decimals.get("X_mm")
+                if printed is not None and want is not None and printed > want:
+                    raise HardwareError(
+                        f"the controller printed the probe report of row {st.row} (target {st.target!r}) to "
+                        f"{printed} decimals, but the log declares X_mm, Y_mm, Z_mm printed to {want} "
+                        f"({NUMBER_FORMAT_KEY}, from the controller's status report when the log began): not "
+                        "logged, the log kept; a controller that prints another step needs a new log")
                 row.update({"X_mm": x[0], "Y_mm": x[1], "Z_mm": x[2], "t_s": t})
                 last_t = t
             else:          # probe-log/1: the measured cells of an invalid touch stay empty
@@ -798,7 +862,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
 
 
 def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
-                  source: str = "<memory>") -> ProbeLog:
+                  source: str = "<memory>", printed: dict | None = None) -> ProbeLog:
     """A full ``probe-log/1`` from a plan and what the machine measured.
 
     Parameters
@@ -813,6 +877,11 @@ def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
         Time of each touch, s since the start; must not go backwards.
     meta : dict
         Metadata added to (and overriding) the plan's.
+    printed : dict, optional
+        The decimals the source printed each measured column with (``{"X_mm": 3, ...}``: a GRBL report's,
+        read from its text), the log's :attr:`~core.probelog.ProbeLog.text_steps` for them (the writer
+        prints them so and declares it, ``number_format``); a measured column not named is exact. The plan's
+        other columns keep the plan's steps (session 33; before, every column of an import was declared exact).
 
     Raises
     ------
@@ -833,4 +902,7 @@ def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,
     cols["status"] = st
     m = plan_meta(plan.meta)
     m.update(meta or {})
-    return make_log(cols, m, source=source)
+    log = make_log(cols, m, source=source)
+    steps = {k: q for k, q in plan.text_steps.items() if k in log.columns and k not in MEASURED}
+    steps.update({k: 10.0 ** -int(d) for k, d in (printed or {}).items() if d is not None})
+    return replace(log, text_steps=steps)

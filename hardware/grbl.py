@@ -78,6 +78,23 @@ _INFO = re.compile(r"^(\[(MSG|GC|HLP|VER|OPT|G54|G55|G56|G57|G58|G59|G28|G30|G92
 _BANNER = re.compile(r"^(Grbl|GrblHAL|grbl)\s*\S*\s*\[.*\]\s*$", re.I)
 
 
+def printed_decimals(numbers: str) -> int | None:
+    """The most decimals written in a controller's comma-separated numbers (``10.000,-0.066,5.283``: 3), the
+    step it printed them to (``core.probelog.most_decimals``); None for no number. GRBL prints every position
+    it reports, ``[PRB:...]`` and a status report's ``MPos``/``WPos`` alike, with one function
+    (``printFloat_CoordValue``, report.c: ``N_DECIMAL_COORDVALUE_MM``, 3 decimals in mm, 4 in inches)."""
+    from core.probelog import most_decimals
+
+    return most_decimals(numbers.split(",")[:3])
+
+
+def prb_decimals(line: str) -> int | None:
+    """:func:`printed_decimals` of the X, Y, Z of a ``[PRB:x,y,z(,...):s]`` report; None when the line is no
+    well-formed report."""
+    m = _PRB.match(line.strip())
+    return None if not m else printed_decimals(m.group(1))
+
+
 def parse_prb(line: str):
     """Parse a ``[PRB:x,y,z(,...):s]`` report.
 
@@ -100,6 +117,9 @@ class Status:
     state: str
     mpos_mm: np.ndarray | None
     wco_mm: np.ndarray | None = None
+    #: the most decimals the report printed its position with (``MPos``, else ``WPos``:
+    #: :func:`printed_decimals`), the step the controller prints every position to, its probe reports' too
+    decimals: int | None = None
 
 
 def parse_status(line: str, wco_mm=None) -> Status | None:
@@ -129,14 +149,16 @@ def parse_status(line: str, wco_mm=None) -> Status | None:
         mpos = vec(fields["MPos"])
         if mpos is None:
             return None
+        printed = fields["MPos"]
     elif "WPos" in fields:
         w = vec(fields["WPos"])
         if w is None:
             return None
         mpos = None if wco is None or wco.size != w.size else w + wco
+        printed = fields["WPos"]
     else:
         return None
-    return Status(m.group(1), mpos, wco)
+    return Status(m.group(1), mpos, wco, printed_decimals(printed))
 
 
 # ---------------------------------------------------------------------------
@@ -326,6 +348,7 @@ class Reply:
     error: int | None = None
     alarms: list = field(default_factory=list)
     prb: list = field(default_factory=list)   # [(axes_mm (k,), touched)]
+    prb_decimals: list = field(default_factory=list)   # the decimals each report printed X, Y, Z with
     lines: list = field(default_factory=list)
 
 
@@ -459,6 +482,7 @@ class GrblClient:
                     self._unexpected(got, f"malformed probe report after {line!r}")
                 else:
                     rep.prb.append(p)
+                    rep.prb_decimals.append(prb_decimals(got))
                 continue
             if _BANNER.match(got):
                 if rep.alarms:     # ALARM:3 (reset in motion) then the banner: the alarm says what to do
@@ -661,6 +685,10 @@ class GrblBackend:
         self.reset = reset
         self._pos_mm: np.ndarray | None = None
         self._connect_banner: str | None = None
+        #: the decimals the controller prints positions with, read from its status report's text at
+        #: :meth:`start` (:attr:`Status.decimals`; GRBL prints ``[PRB:...]`` with the same function): the
+        #: campaign log declares its X_mm, Y_mm, Z_mm printed to them (``number_format``). None before start.
+        self.report_decimals: int | None = None
 
     #: A controller's machine position outlives a connection (unless the controller was reset):
     #: a resumed campaign checks it against where its log left the machine
@@ -710,7 +738,9 @@ class GrblBackend:
         c.alarm = None
         for line in ("G21", "G90", "G94"):
             c.expect_ok(line)
-        self._pos_mm = c.status().mpos_mm[:3].copy()
+        st = c.status()
+        self._pos_mm = st.mpos_mm[:3].copy()
+        self.report_decimals = st.decimals
 
     @staticmethod
     def _check_units(settings: dict[int, str]) -> None:
@@ -823,6 +853,7 @@ class GrblBackend:
         if len(rep.prb) != 1:
             raise HardwareError(f"{len(rep.prb)} probe reports after {line!r} (expected exactly 1)")
         axes, touched = rep.prb[0]
+        printed = rep.prb_decimals[0] if rep.prb_decimals else None
         p = axes[:3]
         # the report must lie on the commanded segment: never take a stray line for a touch
         u = d / np.linalg.norm(d)
@@ -834,7 +865,8 @@ class GrblBackend:
         # where the machine stopped (deceleration past the trigger), from its own report
         self._pos_mm = self.client.status().mpos_mm[:3].copy()
         if touched:
-            return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]), reported_mm=p.copy())
+            return ProbeResult("ok", p * 1e-3, extra_axes=tuple(axes[3:]), reported_mm=p.copy(),
+                               reported_decimals=printed)
         if not allow_miss:
             raise HardwareError(f"G38.2 ended without contact and without ALARM:5 ({line!r})")
         return ProbeResult("no_trigger", p * 1e-3, extra_axes=tuple(axes[3:]))

@@ -36,7 +36,9 @@ values first (``DEBUG``), and its header says so.
 G-code words, as LinuxCNC's ``smartprobe.ngc`` writes them with
 ``(LOG,G1 X#5061 Y#5062 Z#5063)``: every line must carry X, Y and Z words,
 and may carry the plan row (``N``). :func:`import_probe_file` merges it
-with the plan into a full ``probe-log/1``: numbered lines go to their rows
+with the plan into a full ``probe-log/1`` (its X, Y, Z declared printed to the
+decimals the file wrote them with, session 33; a file in inches: exact, as
+before): numbered lines go to their rows
 (which must be 0, 1, 2, ...), others in plan order, and every line must lie
 on its row's approach line, else the file is refused naming the line. A
 file shorter than the plan is the record of a run that
@@ -306,12 +308,16 @@ def read_probe_file(path) -> np.ndarray:
     return _read_lines(path)[0]
 
 
-def _read_lines(path, inch: bool = False):
+def _read_lines(path, inch: bool = False, printed: dict | None = None):
     """(the numbers of :func:`read_probe_file`, the plan row of each line (its ``N`` word, as
     :func:`part_program`'s ``LOG`` lines carry it) or ``None`` for a file without them, the
     file's line number of each row, ``"probe"`` for a PROBEOPEN file or ``"log"``, each line's
     probing stroke in mm (its ``G91 G38.2`` move; ``inch``: the file's units) or ``None`` for a file
-    without them)."""
+    without them). ``printed``, a dict, gets the most decimals the file wrote X, Y, Z with (``{"X_mm": 6,
+    ...}``: LinuxCNC's ``%f``), read from its text (:func:`core.probelog.most_decimals`)."""
+    from core.probelog import most_decimals
+
+    texts = []
     p = Path(path)
     text = read_text_file(p, ProbeLogError, "file")
     rows, width, kind = [], None, None
@@ -326,7 +332,7 @@ def _read_lines(path, inch: bool = False):
             raise ProbeLogError(f"{p}: line {ln}: G-code words and bare numbers mixed in one file")
         kind = "log" if words else "probe"
         if words:
-            vals, tag, stroke = _log_line(p, ln, line, inch)
+            vals, tag, stroke = _log_line(p, ln, line, inch, texts)
             if strokes and (stroke is None) != (strokes[-1] is None):
                 raise ProbeLogError(f"{p}: line {ln}: a G91 G38.2 move (the probing stroke) on some lines and not "
                                     "on others")
@@ -346,6 +352,7 @@ def _read_lines(path, inch: bool = False):
                                     "or 9 (X Y Z A B C U V W)")
             if width is not None and len(vals) != width:
                 raise ProbeLogError(f"{p}: line {ln}: {counted(len(vals), 'number')} but earlier lines have {width}")
+            texts.append(parts[:3])
         if not all(math.isfinite(v) for v in vals):
             raise ProbeLogError(f"{p}: line {ln}: not finite")
         width = len(vals)
@@ -353,6 +360,11 @@ def _read_lines(path, inch: bool = False):
         line_no.append(ln)
     if not rows:
         raise ProbeLogError(f"{p}: empty probe file")
+    if printed is not None:
+        for j, c in enumerate(("X_mm", "Y_mm", "Z_mm")):
+            d = most_decimals([t[j] for t in texts])
+            if d is not None:
+                printed[c] = d
     return (np.array(rows), (tags if tags and tags[0] is not None else None), line_no, kind,
             (strokes if strokes and strokes[0] is not None else None))
 
@@ -398,10 +410,10 @@ _LOG_MOVE = re.compile(r"G0*91\s*G0*38\.2(?![\d])", re.I)
 _LOG_START = re.compile(r"\s*(?:N\s*\d+\s*)?G\s*0*1\s*X", re.I)
 
 
-def _log_line(p: Path, ln: int, line: str, inch: bool = False) -> tuple:
+def _log_line(p: Path, ln: int, line: str, inch: bool = False, texts: list | None = None) -> tuple:
     """(X, Y, Z, the plan row or None, the probing move's length mm or None) of a ``LOGOPEN`` line such as
     ``G1 X1.000000 Y2.000000 Z-0.500000`` (``N<row>`` and a ``G91 G38.2 X.. Y.. Z..`` tail: its probing
-    move, :func:`part_program`'s)."""
+    move, :func:`part_program`'s); ``texts`` gets the X, Y, Z words' numbers as written."""
     from .transcript import _stroke_mm
 
     code = re.sub(r"\([^)]*\)|;.*$", "", line)
@@ -441,6 +453,8 @@ def _log_line(p: Path, ln: int, line: str, inch: bool = False) -> tuple:
         if not re.fullmatch(r"\+?\d+", got["N"]):
             raise ProbeLogError(f"{p}: line {ln}: N{got['N']}: the plan row must be a whole number >= 0")
         tag = int(got["N"])
+    if texts is not None:
+        texts.append([got["X"], got["Y"], got["Z"]])
     return [float(got["X"]), float(got["Y"]), float(got["Z"])], tag, stroke
 
 
@@ -609,8 +623,11 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     """
     if units not in ("mm", "inch"):
         raise PlanError(f"units {units!r}: expected mm or inch")
-    data, tags, line_no, kind, strokes = _read_lines(path, units == "inch")
+    printed: dict = {}
+    data, tags, line_no, kind, strokes = _read_lines(path, units == "inch", printed)
     pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
+    if units == "inch":     # a step of 25.4 x 10^-K mm is no decimal step: the converted values written exact
+        printed = {}
     meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
     built = plan is None
@@ -638,7 +655,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
         pos = np.vstack([pos, np.full((n - k, 3), np.nan)])
         meta["probe_file_rows"] = _short_file_note(k, n, kind, tags is not None)
     t = np.arange(n) * float(dt_s)
-    return log_from_plan(plan, pos, status, t, meta, source=str(path))
+    return log_from_plan(plan, pos, status, t, meta, source=str(path), printed=printed)
 
 
 # --------------------------------------------------------------------------- compensation files

@@ -8,6 +8,11 @@ repeats the last probe and is skipped. A line that starts like a probe
 report but is not one is an error naming the line: garbage is never taken
 for a position.
 
+The decimals the reports print X, Y, Z with (GRBL 1.1h in mm: 3) are read
+from the text (:func:`report_decimals`) and declared as the log's step for
+those columns (``number_format``'s ``decimals``, session 33): ``vmt fit``
+floors its U95 on them.
+
 Reports are read as millimetres. GRBL reports inches, ``[PRB:...]`` too,
 when its setting ``$13`` (report inches) is 1: a transcript that shows
 ``$13=1`` (its ``$$`` dump, or the setting sent) before a probe report is
@@ -112,6 +117,9 @@ class Session:
     resets: list = field(default_factory=list)
     n_lines: int = 0
     strokes: list = field(default_factory=list)
+    #: per report, the text of its X, Y, Z numbers as the controller printed them (their decimals: the step
+    #: :func:`report_decimals` reads)
+    printed: list = field(default_factory=list)
 
 
 def read_transcript(path):
@@ -162,7 +170,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     # a stray byte of serial noise in a line that is not a probe report is harmless: decoded with
     # replacement (a probe report it garbles is refused as malformed, below)
     text = data.decode("utf-8", errors="replace")
-    pos, touched, stamps, where = [], [], [], []
+    pos, touched, stamps, where, printed = [], [], [], [], []
     alarms, probing, errors, resets, strokes = [], [], [], [], []
     inch = False      # G20 sent: a probing move's words in inches (the reports stay mm, $13=0)
     t0 = None
@@ -223,6 +231,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         if r is None:
             raise ProbeLogError(f"{p}: line {ln}: malformed probe report {tok.group(0)[:60]!r}")
         pos.append(r[0][:3])
+        printed.append(tok.group(0)[5:].split(":")[0].split(",")[:3])
         touched.append(r[1])
         stamps.append(ts)
         where.append(ln)
@@ -247,7 +256,22 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
     return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
-                   probing, errors, resets, ln, strokes)
+                   probing, errors, resets, ln, strokes, printed)
+
+
+def report_decimals(s: Session) -> dict[str, int]:
+    """The decimals the transcript's reports printed X, Y, Z with, per column (``{"X_mm": 3, ...}``): the most
+    written in each over every report (GRBL 1.1h in mm: 3, a step of 1 um; ``core.probelog.most_decimals``),
+    read from the text, not assumed. The imported log declares its X_mm, Y_mm, Z_mm so (``number_format``,
+    session 33: before, an import declared them exact and ``vmt fit`` floored no U95 on their rounding)."""
+    from core.probelog import most_decimals
+
+    out = {}
+    for j, c in enumerate(("X_mm", "Y_mm", "Z_mm")):
+        d = most_decimals([p[j] for p in s.printed if len(p) > j])
+        if d is not None:
+            out[c] = d
+    return out
 
 
 def _stroke_mm(body: str, inch: bool) -> float | None:
@@ -470,6 +494,7 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         See :func:`read_transcript`; a report that is not its row's touch.
     """
     s = read_session(path, stopped_at_first=True)
+    printed = report_decimals(s)
     k, n = len(s.pos_mm), plan.n
     if k == 0:      # nothing measured: a log of it would read as a plan (as LinuxCNC's empty probe file, refused)
         _, why, _ = _stop(s, plan)
@@ -505,4 +530,4 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         meta["transcript_reports"] = (f"{k} of {n}: the run stopped {at}; {rest} not measured "
                                       f"({marked})")
         meta["stop_reason"] = why
-    return log_from_plan(plan, pos, status, t, meta, source=str(path))
+    return log_from_plan(plan, pos, status, t, meta, source=str(path), printed=printed)

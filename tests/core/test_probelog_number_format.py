@@ -57,11 +57,16 @@ def test_without_the_declaration_the_digits_are_the_precision():
 @pytest.mark.parametrize("k", [7, 4, 3])
 def test_a_log_read_from_a_file_and_written_again_keeps_its_printed_precision(k):
     """A plate printed to ``k`` decimals, read and written again by vmt: the recorded columns are written to the
-    same ``k`` decimals (``160.0000000`` stays so, not ``160.0``), no exactness declared, and the tolerance read
-    back is the file's own: 7 decimals keep RANK_TOL on the whole-mm plate, 4 and 3 rank30's protection."""
+    same ``k`` decimals (``160.0000000`` stays so, not ``160.0``), declared so column by column (session 33: before,
+    the line was dropped, and the columns written as repr, ``t_s``, ``C_deg``, read as printed to their digits), and
+    the tolerance read back is the file's own: 7 decimals keep RANK_TOL on the whole-mm plate, 4 and 3 rank30's
+    protection."""
     src = _plate(0.0 if k == 7 else 0.0123457, decimals=k)
     text = _rewritten(src)
-    assert P.NUMBER_FORMAT_KEY not in text
+    cols = ("X_mm", "Y_mm", "Z_mm", "Xn_mm", "Yn_mm", "Zn_mm", "nx", "ny", "nz")
+    assert (f"# {P.NUMBER_FORMAT_KEY}: {P.NUMBER_FORMAT_EXACT}; decimals "
+            + ", ".join(f"{c}={k}" for c in cols)) in text.splitlines()
+    assert _rewritten(text) == text    # write -> read -> write: the same bytes
     assert parse_probe_log(text, "re.csv").columns["Xn_mm"].tolist() == parse_probe_log(src, "in.csv").columns["Xn_mm"].tolist()
     t, t0 = from_log(parse_probe_log(text, "re.csv")), from_log(parse_probe_log(src, "in.csv"))
     assert t.text_steps["Xn_mm"] == pytest.approx(10.0 ** -k) == t0.text_steps["Xn_mm"]
