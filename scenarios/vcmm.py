@@ -520,6 +520,23 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     return out
 
 
+def true_values(st: Setting, seed: int, runs, y_nom: np.ndarray, perfect) -> np.ndarray:
+    """Each run's true measurand values (len(runs), m) SI: the part as that run drew it, measured at the
+    plan's points by the perfect machine (``perfect``) without noise, drift or the probe's drawn terms,
+    at 20 C, as ``y_nom`` is. Without a ``[form]`` the part is its nominal in every run: ``y_nom``
+    repeated (no run simulated). The truth is taken at the plan's points (a form between them is
+    not the measurand's)."""
+    n = len(runs)
+    if not st.task.forms:
+        return np.broadcast_to(np.asarray(y_nom, float), (n, len(y_nom))).copy()
+    out = np.empty((n, len(st.task.measurands)))
+    for i, k in enumerate(runs):
+        coeffs = {key: v for key, v in draw(st, seed, int(k))[0].items() if key[0] == "form"}
+        p = simulate_run(st, coeffs, None, noise=False, machine=perfect)
+        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
+    return out
+
+
 #: First run index of the Sobol matrices (apart from the adaptive runs, which count from 0).
 SOBOL_FIRST_RUN = 10 ** 9
 
@@ -663,10 +680,14 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
     if sobol_runs:
         sob, sob_se = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
         done += sobol_runs * (len(st.sources) + 2)
+    # the error about the true value, run by run (review33a F6: a form's noise bias left measured +- U95
+    # covering the true flatness in 15 % of runs): the runs' own parts, so a drawn form is in the truth
+    err = vals - true_values(st, seed, range(len(vals)), y_nom, perfect)
     elapsed = time.perf_counter() - t0
     out = []
     for j, m in enumerate(task.measurands):
         s = V.mc_stats(vals[:, j], task.mc.coverage)
+        es = V.error_stats(err[:, j], 0.5 * (s.high - s.low), task.mc.coverage)
         u_src = {k: float(v[j]) for k, v in bud.items()}
         ss = sum(x * x for x in u_src.values())
         out.append({
@@ -681,6 +702,12 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "U95": 0.5 * (s.high - s.low) * m.u_scale if task.mc.coverage == 0.95 else None,
             "coverage": task.mc.coverage,
             "interval": [s.low * m.scale, s.high * m.scale],
+            "error_mean": es.mean * m.u_scale,
+            "error_interval": [es.low * m.u_scale, es.high * m.u_scale],
+            "U_about_true": es.U_about_true * m.u_scale,
+            "U95_about_true": es.U_about_true * m.u_scale if task.mc.coverage == 0.95 else None,
+            "U_covers_true": es.covers,
+            "biased": es.biased,
             "converged": bool(ok[j]),
             "tolerance": float(delta[j] * m.u_scale),
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
