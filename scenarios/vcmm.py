@@ -788,6 +788,15 @@ def plan_from_rows(rows, stylus_r_mm: float, title: str):
     return make_log(cols, {"plan": title, "stylus_r_mm": f"{stylus_r_mm:g}"})
 
 
+def _true_in(m: dict) -> str:
+    """``[measured - a, measured - b] unit`` of a measurand's error interval (a report JSON before the key: -)."""
+    if "error_interval" not in m:
+        return "-"
+    lo, hi = m["error_interval"]
+    tail = f" BIASED ({100 * m['U_covers_true']:.0f} %)" if m.get("biased") else ""
+    return f"[measured {-hi:+.4f}, measured {-lo:+.4f}] {m['u_unit']}{tail}"
+
+
 def write_report(folder, rep: dict, *, worst: int = 10):
     """A report folder (index.html): the measurands with U95 and interval, the budget chart, the worst touches.
 
@@ -802,12 +811,16 @@ def write_report(folder, rep: dict, *, worst: int = 10):
     rows = [(m["name"], m["quantity"], f"{m['nominal']:.6g} {m['unit']}", f"{m['bias']:+.4f}", f"{m['u']:.4f}",
              f"{m['U']:.4f}",
              f"[{m['interval'][0]:.6f}, {m['interval'][1]:.6f}] {m['unit']}", m["u_unit"],
+             _true_in(m), f"{m['U_about_true']:.4f}" if "U_about_true" in m else "-",
              "yes" if m["converged"] else "NO (max_runs)") for m in ms]
     p = f"{100 * rep['measurands'][0]['coverage']:g} %"
     summary = Table(("measurand", "quantity", "nominal", "bias", "u", f"U ({p})", "coverage interval",
-                     "unit of bias/u/U", "converged"), rows,
+                     "unit of bias/u/U", f"true value in ({p})", "U about the true value", "converged"), rows,
                     caption=f"bias: Monte Carlo mean minus the value on a perfect machine; U: half the "
-                            f"probabilistically symmetric {p} interval (JCGM 101 7.7)")
+                            f"probabilistically symmetric {p} interval (JCGM 101 7.7) of the measured value; "
+                            f"the true value: measured minus the {p} interval of the error (measured - true), "
+                            f"or measured +- the U about it (BIASED: measured +- U covers the true value in "
+                            f"fewer runs than {p}, said in %)")
     tw = sorted(rep["touches_u"], key=lambda t: -t["u_dq_um"])[:worst]
     touches = Table(("target", "feature", "u(dq) / µm", "mean dq / µm"),
                     [(t["target"], t["feature"], f"{t['u_dq_um']:.4f}", f"{t['mean_dq_um']:+.4f}") for t in tw])
