@@ -8,6 +8,10 @@ and evaluates the measurands (:mod:`core.vcmm`). Runs go in batches until
 JCGM 101's adaptive rule (7.9) says every measurand's y, u, and coverage
 interval ends are stable; then the budget: the same procedure with one
 source at a time (the others at their best estimate, zero), reporting u.
+Each run's error about its true value (measured minus the run's part on a
+perfect machine without noise, :func:`true_values`) gives the interval
+about the true value: a form's noise bias makes the measured value's own
+interval miss it (review33a F6).
 
 The part: each task feature's nominal surface is the exact primitive (plane,
 cylinder for a circle, sphere, cylinder) through the plan's nominal
