@@ -10,16 +10,19 @@ seeded generator (not vmt's simulator, not its fit: an SVD plane and the peak-to
 residuals) check that this interval covers 0 in ~95 % of them and the old measured +- U95 does not.
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from core import vcmm as V
 from scenarios import vcmm as S
+from sim.machine import Machine
 from sim.machinefile import resolve
 from tests.scenarios.test_vcmm_line_profile import meas
 from tests.scenarios.test_vcmm_study import BORE, C_MM, R_MM, plan_of
 
-TOP = [(x, y) for x, y in ((-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20), (10, -22))]
+TOP = [(-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20), (10, -22)]   # block_plan's top
 PLAN = plan_of([("top", (x, y, 0.0), (0.0, 0.0, 1.0)) for x, y in TOP])
 SIGMA_UM = 0.25
 TASK = ('[features.top]\nkind = "plane"\nfeature = "top"\n' + meas("flat", "flatness", "top")
@@ -70,7 +73,8 @@ def test_the_interval_about_the_true_flatness_covers_it_and_the_measured_values_
     # vmt's figure of the old coverage is the repeats' (same law): binomial SEs at 0.15 of 1000 runs
     # (0.011) and 4000 repeats (0.006) make 0.013 together; 0.04 is 3 of it
     assert flat["U_covers_true"] == pytest.approx(old, abs=0.04)
-    # the mean error is the repeats' mean flatness (truth 0): SEs 0.2 / sqrt(1000) and / sqrt(4000), 0.03 um is 4 of them
+    # the mean error is the repeats' mean flatness (truth 0): SEs 0.2 / sqrt(1000) and 0.2 / sqrt(4000) um,
+    # 0.007 together: 0.03 um is 4 of them
     assert flat["error_mean"] == pytest.approx(y.mean(), abs=0.03)
 
 
@@ -97,9 +101,6 @@ def test_the_truth_of_a_drawn_form_is_the_runs_own_part(machine):
     task = ('[features.bore]\nkind = "circle"\nfeature = "bore"\n[probe]\nnoise_um = 0.0\n'
             + meas("round", "roundness", "bore") + '[form.bore]\namplitude_um = 1.5\nlobes = 3\n')
     st = S.prepare(BORE, V.loads_task(task), machine)
-    from sim.machine import Machine
-    import dataclasses
-
     perfect = Machine(dataclasses.replace(st.config, errors={}))
     t = S.true_values(st, 7, range(4), np.zeros(1), perfect)
     th = np.arctan2(st.Xn_R[:, 1] - C_MM[1] * 1e-3, st.Xn_R[:, 0] - C_MM[0] * 1e-3)
