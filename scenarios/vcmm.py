@@ -8,6 +8,10 @@ and evaluates the measurands (:mod:`core.vcmm`). Runs go in batches until
 JCGM 101's adaptive rule (7.9) says every measurand's y, u, and coverage
 interval ends are stable; then the budget: the same procedure with one
 source at a time (the others at their best estimate, zero), reporting u.
+Each run's error about its true value (measured minus the run's part on a
+perfect machine without noise, :func:`true_values`) gives the interval
+about the true value: a form's noise bias makes the measured value's own
+interval miss it (review33a F6).
 
 The part: each task feature's nominal surface is the exact primitive (plane,
 cylinder for a circle, sphere, cylinder) through the plan's nominal
@@ -520,6 +524,23 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     return out
 
 
+def true_values(st: Setting, seed: int, runs, y_nom: np.ndarray, perfect) -> np.ndarray:
+    """Each run's true measurand values (len(runs), m) SI: the part as that run drew it, measured at the
+    plan's points by the perfect machine (``perfect``) without noise, drift or the probe's drawn terms,
+    at 20 C, as ``y_nom`` is. Without a ``[form]`` the part is its nominal in every run: ``y_nom``
+    repeated (no run simulated). The truth is taken at the plan's points (a form between them is
+    not the measurand's)."""
+    n = len(runs)
+    if not st.task.forms:
+        return np.broadcast_to(np.asarray(y_nom, float), (n, len(y_nom))).copy()
+    out = np.empty((n, len(st.task.measurands)))
+    for i, k in enumerate(runs):
+        coeffs = {key: v for key, v in draw(st, seed, int(k))[0].items() if key[0] == "form"}
+        p = simulate_run(st, coeffs, None, noise=False, machine=perfect)
+        out[i] = V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
+    return out
+
+
 #: First run index of the Sobol matrices (apart from the adaptive runs, which count from 0).
 SOBOL_FIRST_RUN = 10 ** 9
 
@@ -663,10 +684,14 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
     if sobol_runs:
         sob, sob_se = sobol_first_order(st, seed, sobol_runs, progress=progress, done_before=done)
         done += sobol_runs * (len(st.sources) + 2)
+    # the error about the true value, run by run (review33a F6: a form's noise bias left measured +- U95
+    # covering the true flatness in 15 % of runs): the runs' own parts, so a drawn form is in the truth
+    err = vals - true_values(st, seed, range(len(vals)), y_nom, perfect)
     elapsed = time.perf_counter() - t0
     out = []
     for j, m in enumerate(task.measurands):
         s = V.mc_stats(vals[:, j], task.mc.coverage)
+        es = V.error_stats(err[:, j], 0.5 * (s.high - s.low), task.mc.coverage)
         u_src = {k: float(v[j]) for k, v in bud.items()}
         ss = sum(x * x for x in u_src.values())
         out.append({
@@ -681,6 +706,12 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "U95": 0.5 * (s.high - s.low) * m.u_scale if task.mc.coverage == 0.95 else None,
             "coverage": task.mc.coverage,
             "interval": [s.low * m.scale, s.high * m.scale],
+            "error_mean": es.mean * m.u_scale,
+            "error_interval": [es.low * m.u_scale, es.high * m.u_scale],
+            "U_about_true": es.U_about_true * m.u_scale,
+            "U95_about_true": es.U_about_true * m.u_scale if task.mc.coverage == 0.95 else None,
+            "U_covers_true": es.covers,
+            "biased": es.biased,
             "converged": bool(ok[j]),
             "tolerance": float(delta[j] * m.u_scale),
             "budget": [{"source": k, "u": u * m.u_scale, "share": (u * u / ss) if ss > 0 else 0.0,
@@ -761,6 +792,15 @@ def plan_from_rows(rows, stylus_r_mm: float, title: str):
     return make_log(cols, {"plan": title, "stylus_r_mm": f"{stylus_r_mm:g}"})
 
 
+def _true_in(m: dict) -> str:
+    """``[measured - a, measured - b] unit`` of a measurand's error interval (a report JSON before the key: -)."""
+    if "error_interval" not in m:
+        return "-"
+    lo, hi = m["error_interval"]
+    tail = f" BIASED ({100 * m['U_covers_true']:.0f} %)" if m.get("biased") else ""
+    return f"[measured {-hi:+.4f}, measured {-lo:+.4f}] {m['u_unit']}{tail}"
+
+
 def write_report(folder, rep: dict, *, worst: int = 10):
     """A report folder (index.html): the measurands with U95 and interval, the budget chart, the worst touches.
 
@@ -775,12 +815,16 @@ def write_report(folder, rep: dict, *, worst: int = 10):
     rows = [(m["name"], m["quantity"], f"{m['nominal']:.6g} {m['unit']}", f"{m['bias']:+.4f}", f"{m['u']:.4f}",
              f"{m['U']:.4f}",
              f"[{m['interval'][0]:.6f}, {m['interval'][1]:.6f}] {m['unit']}", m["u_unit"],
+             _true_in(m), f"{m['U_about_true']:.4f}" if "U_about_true" in m else "-",
              "yes" if m["converged"] else "NO (max_runs)") for m in ms]
     p = f"{100 * rep['measurands'][0]['coverage']:g} %"
     summary = Table(("measurand", "quantity", "nominal", "bias", "u", f"U ({p})", "coverage interval",
-                     "unit of bias/u/U", "converged"), rows,
+                     "unit of bias/u/U", f"true value in ({p})", "U about the true value", "converged"), rows,
                     caption=f"bias: Monte Carlo mean minus the value on a perfect machine; U: half the "
-                            f"probabilistically symmetric {p} interval (JCGM 101 7.7)")
+                            f"probabilistically symmetric {p} interval (JCGM 101 7.7) of the measured value; "
+                            f"the true value: measured minus the {p} interval of the error (measured - true), "
+                            f"or measured +- the U about it (BIASED: measured +- U covers the true value in "
+                            f"fewer runs than {p}, said in %)")
     tw = sorted(rep["touches_u"], key=lambda t: -t["u_dq_um"])[:worst]
     touches = Table(("target", "feature", "u(dq) / µm", "mean dq / µm"),
                     [(t["target"], t["feature"], f"{t['u_dq_um']:.4f}", f"{t['mean_dq_um']:+.4f}") for t in tw])

@@ -125,6 +125,12 @@ def run(args) -> int:
         print(f"  {m['name']}: nominal {_fmt(m['nominal'], m['unit'])}, bias {m['bias']:+.4f} {m['u_unit']}, "
               f"u {m['u']:.{d}f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.{d}f} {m['u_unit']}, "
               f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
+        lo, hi = m["error_interval"]   # the true value is measured - error (review33a F6)
+        minus = lambda e: f"measured {'-' if e >= 0 else '+'} {abs(e):.{d}f}"   # noqa: E731
+        print(f"      the true value ({100 * m['coverage']:g} %): in [{minus(hi)}, {minus(lo)}] {m['u_unit']}, "
+              f"or measured +- {m['U_about_true']:.{d}f} {m['u_unit']}"
+              + (f"; BIASED by {m['error_mean']:+.{d}f} {m['u_unit']}: measured +- U{100 * m['coverage']:g} "
+                 f"covers it in {100 * m['U_covers_true']:.0f} % of runs" if m["biased"] else ""))
         for b in sorted(m["budget"], key=lambda b: -b["u"]):
             print(f"      {b['source']:24s} u {b['u']:.{d}f} {m['u_unit']}  ({100 * b['share']:.1f} %)")
         if m["sobol_first_order"]:
