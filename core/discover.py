@@ -223,7 +223,10 @@ What it does, in order, and the statistics behind each step
    ``alpha_family``: the lost motion's column less its target's mean, or
    the touches whose approach moves an axis least, where a lost motion's
    state is the one earlier moves left; then ambiguous with ``reversal``;
-   gen_a reversal, session 20). Three
+   gen_a reversal, session 20); nor, by BIC, one column of structure (a
+   target's time, the reversed approach) explain them as well as one free
+   value per outlier does (:func:`outliers_structure`,
+   :data:`OUTLIERS_STRUCTURE_HEDGED`, session 33). Three
    rules beside the findings (session 16) only move such a flag: outliers
    that lead beside structure left unnamed are not confidently dust (the
    largest residuals of a misfit sit where it peaks; :func:`_ordered`); a
