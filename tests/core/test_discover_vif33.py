@@ -1,0 +1,103 @@
+"""Session 33 (vif33): a term nearly inside the baseline, and the shift its inflated directions carry.
+
+- :data:`core.discover.INFLATED_SIGNAL_HEDGED`: a named cause whose significance rests on its directions inflated
+  beyond ``vif_max`` (its determined directions alone not significant, the inflated ones carrying most of its fitted
+  values) is named with doubt (gen_b stylus_bending 9702: ``probe_lobing`` read confidently from a 0.17 um bending
+  through four directions inflated up to 2163 times);
+- :data:`core.discover.HEDGED_SHIFT_READING` ``"determined"``: the shift carried for such a cause is the one between
+  its term fitted on every direction and on its determined ones only, not the whole term's.
+
+Known answers on a synthetic term nearly inside a baseline (:func:`core.discover._inflated_split`), and on the
+campaigns that pin the rules. docs/discovery.md, "Session 33: a term nearly inside the baseline".
+"""
+
+import numpy as np
+import pytest
+
+import core.discover as D
+from core.units import UM
+from scenarios.blind import gen_a, gen_b
+from scenarios.hidden import blind_outcome
+from tests.discover_helpers import discovered
+
+
+def _frame(n=200, seed=3):
+    """Orthonormal ``q1, q2`` (the model's basis ``Q``), ``u, v, w`` orthonormal and orthogonal to it."""
+    rng = np.random.default_rng(seed)
+    B = np.linalg.qr(rng.standard_normal((n, 5)))[0]
+    return B[:, :2], B[:, 2], B[:, 3], B[:, 4]
+
+
+def _split_case(eps=0.05, alpha=2.0, beta=0.3, gamma=1.5, scale=(3.0, 0.5)):
+    """A cause ``E = [s1 u, s2 (q1 + eps v)]`` beside ``Q``: its second column lies ``atan(eps)`` from the model
+    (inflation ``(1 + eps^2) / eps^2``), the residual ``r = alpha u + beta v + gamma w`` (um)."""
+    Q, u, v, w = _frame()
+    E = np.column_stack([scale[0] * u, scale[1] * (Q[:, 0] + eps * v)])
+    r = (alpha * u + beta * v + gamma * w) * UM
+    return Q, E, r, (Q, u, v, w)
+
+
+def test_inflated_split_known_answer():
+    """Exact figures: the inflated direction explains ``beta^2``, the determined one ``alpha^2``; the coefficient
+    along the inflated one is ``beta sqrt(1 + eps^2) / eps`` on the normalised column, so the term's fitted values
+    are ``alpha u + beta (q1 / eps + v)``; the determined direction's F test is ``alpha^2 / (gamma^2 / (dof - 2))``
+    (the residual left by both directions is ``gamma w``). Tolerance 1e-9 relative: a few dozen rounded operations
+    on unit vectors."""
+    eps, alpha, beta, gamma = 0.05, 2.0, 0.3, 1.5
+    Q, E, r, (_, u, v, w) = _split_case(eps, alpha, beta, gamma)
+    n, dof = len(r), len(r) - 2
+    sp = D._inflated_split(Q, E, r, dof, vif_max=100.0)
+    assert (sp["k_inflated"], sp["k_determined"]) == (1, 1)
+    s2 = (alpha ** 2 + beta ** 2 + gamma ** 2) / dof  # (the chi-square's sigma: the model's residual, r r / dof)
+    assert sp["chi2_inflated"] == pytest.approx(beta ** 2 / s2, rel=1e-9)
+    assert sp["ss_share_inflated"] == pytest.approx(beta ** 2 / (alpha ** 2 + beta ** 2), rel=1e-9)
+    f_inf = beta * np.sqrt(1.0 + eps ** -2)  # |beta (q1 / eps + v)|
+    f_all = np.sqrt(alpha ** 2 + f_inf ** 2)  # (u is orthogonal to q1 and v)
+    assert sp["magnitude_share_inflated"] == pytest.approx(f_inf / f_all, rel=1e-9)
+    assert sp["rms_um"] == pytest.approx(f_all / np.sqrt(n), rel=1e-9)
+    assert sp["rms_determined_um"] == pytest.approx(alpha / np.sqrt(n), rel=1e-9)
+    F = alpha ** 2 / (gamma ** 2 / (dof - 2))
+    assert sp["F_determined"] == pytest.approx(F, rel=1e-9)
+    from scipy import stats
+    assert sp["p_determined"] == pytest.approx(stats.f.sf(F, 1, dof - 2), rel=1e-6)
+    # the columns' scale does not matter (normalised), nor their sign
+    sp2 = D._inflated_split(Q, E * np.array([-7.0, 0.01]), r, dof, vif_max=100.0)
+    for k in ("chi2_inflated", "magnitude_share_inflated", "F_determined", "rms_um"):
+        assert sp2[k] == pytest.approx(sp[k], rel=1e-9), k
+
+
+def test_inflated_split_signal_along_the_sliver():
+    """A residual along the sliver alone (``alpha = 0``): the determined direction sees nothing (F 0, p 1), the
+    inflated one carries every fitted value, ``1 / eps`` times the signal it was read from."""
+    eps, beta = 0.02, 0.5
+    Q, E, r, _ = _split_case(eps, 0.0, beta, 1.0)
+    sp = D._inflated_split(Q, E, r, len(r) - 2, vif_max=100.0)
+    assert sp["F_determined"] == pytest.approx(0.0, abs=1e-12) and sp["p_determined"] == pytest.approx(1.0)
+    assert sp["magnitude_share_inflated"] == pytest.approx(1.0, rel=1e-9)
+    assert sp["rms_um"] * np.sqrt(len(r)) == pytest.approx(beta * np.sqrt(1 + eps ** -2), rel=1e-9)
+
+
+def test_inflated_split_none_where_nothing_is_inflated_or_everything_is():
+    """None: no direction beyond vif_max (eps large), every kept direction beyond it (the cause confounded), no
+    column, or no residual."""
+    Q, E, r, (_, u, v, w) = _split_case(eps=0.5)  # inflation 5
+    assert D._inflated_split(Q, E, r, len(r) - 2, vif_max=100.0) is None
+    Q, E, r, _ = _split_case(eps=0.05)
+    assert D._inflated_split(Q, E[:, 1:], r, len(r) - 2, vif_max=100.0) is None  # its one direction at 401
+    assert D._inflated_split(Q, E[:, :0], r, len(r) - 2, vif_max=100.0) is None
+    assert D._inflated_split(Q, E, 0.0 * r, len(r) - 2, vif_max=100.0) is None
+    # vif_max above the sliver's inflation: nothing beyond it
+    assert D._inflated_split(Q, E, r, len(r) - 2, vif_max=1e3) is None
+
+
+def test_determined_drop_leaves_the_sliver_out():
+    """``_determined(..., drop=True)`` leaves the direction beyond vif_max out whatever VIF_DROP_BEYOND_MAX says
+    (the reading HEDGED_SHIFT_READING "determined" refits); ``drop=False`` keeps it; None follows the constant."""
+    Q, E, r, (_, u, v, w) = _split_case(eps=0.05)
+    M, vif, worst, ang, weak, beyond = D._determined(Q, E, 100.0, drop=True)
+    assert M.shape == (2, 1) and beyond == 1 and weak == 1 and vif == pytest.approx(1.0) and worst == vif
+    # the kept combination is the column along u (the first), scaled back to the raw column
+    assert np.allclose(np.abs(E @ M)[:, 0], np.abs(u), atol=1e-12)
+    M, vif, worst, *_ = D._determined(Q, E, 100.0, drop=False)
+    assert M.shape == (2, 2) and worst == pytest.approx((1 + 0.05 ** 2) / 0.05 ** 2, rel=1e-9)
+    assert D._determined(Q, E, 100.0)[0].shape[1] == (1 if D.VIF_DROP_BEYOND_MAX else 2)
