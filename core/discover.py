@@ -5661,8 +5661,8 @@ def _inflated_split(Q: np.ndarray, E: np.ndarray, r: np.ndarray, dof: int, vif_m
     """How a cause's fit beside the model splits between its directions within ``vif_max`` and those beyond it.
 
     ``E`` the cause's columns on the model's rows, ``Q`` the model's basis, ``r`` the residual beside it (the
-    model's ``st.r``) on ``dof`` degrees of freedom, ``sigma^2 = r^T r / dof``. In the eigenbasis of the columns' Gram matrix beside the model
-    (:func:`_determined`: ``w_j`` the eigenvalues of the normalised columns projected out of ``Q``, the directions'
+    model's ``st.r``) on ``dof`` degrees of freedom, ``sigma^2 = r^T r / dof``. In the eigenbasis of the columns'
+    Gram matrix beside the model (:func:`_determined`: ``w_j`` the eigenvalues of the normalised columns projected out of ``Q``, the directions'
     inflation ``1 / w_j``), the fit is a sum over directions: direction ``j`` explains ``b_j^2 / w_j`` of the
     residual (``b = V^T P^T r``) and carries the coefficient ``b_j / w_j``, whose standard error is
     ``sigma / sqrt(w_j)``. Its signal in sigmas is ``z_j = b_j / (sigma sqrt(w_j))``: what the data say along it,
@@ -10716,7 +10716,8 @@ def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubt
                     continue
                 fig = dict(fig, alternative=other, **({"form": True} if nests == "form" else
                                                       {"without": True} if nests == "without" else
-                                                      {"without": True, "determined": True} if nests == "determined" else
+                                                      {"without": True, "determined": True}
+                                                      if nests == "determined" else
                                                       {"richer": True} if nests else {}))
                 if best is None or (fig["carried_in_u95"], fig["shift_rms_um"]) > (best[1]["carried_in_u95"],
                                                                                    best[1]["shift_rms_um"]):
