@@ -124,7 +124,8 @@ def test_8907_determined_reading_is_the_drop_beyond_max_model_known_answer(monke
     monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated_any")
     monkeypatch.setattr(D, "HEDGED_SHIFT_READING", "determined")
     r1 = _report_8907()
-    assert [f["cause"] for f in rd["findings"]] == [f["cause"] for f in r1["findings"]] == ["unexplained", "part_change"]
+    causes = ["unexplained", "part_change"]
+    assert [f["cause"] for f in rd["findings"]] == [f["cause"] for f in r1["findings"]] == causes
     assert r0["outlier_rows"] == rd["outlier_rows"] == r1["outlier_rows"] == []
     ev = r1["findings"][1]["evidence"]
     fig = ev["workpiece_shift_determined"]
