@@ -108,7 +108,8 @@ def test_gen_a_reseat_hysteresis_9702_not_confidently_named():
 # 3. gen_b stylus_bending 9702 ---------------------------------------------------------------------------------------
 
 @pytest.mark.slow
-def test_gen_b_stylus_bending_9702_mechanism():
+def test_gen_b_stylus_bending_9702_mechanism(monkeypatch):
+    monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)  # (the reading before session 33's hedge: vif33)
     log, _ = gen_b.generate("stylus_bending", 9702, effect_on=False)
     assert _read(log)[0] == "none"  # the same campaign without the effect
     log, _ = gen_b.generate("stylus_bending", 9702)
