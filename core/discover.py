@@ -5587,7 +5587,7 @@ VIF_WORST_REFUSED = False
 #: the determined directions alone) and 75 % of what it explains; the determined four alone F 2.3, not
 #: significant. Finer than :data:`VIF_WORST_REFUSED` (refuses whatever the signal): right forms are inflated along
 #: some direction as a rule, and the data along it are rarely all they rest on.
-INFLATED_SIGNAL_HEDGED = False
+INFLATED_SIGNAL_HEDGED = True
 #: :data:`INFLATED_SIGNAL_HEDGED`'s share of the term's fitted values (norm over the touches) its inflated
 #: directions carry, at least.
 INFLATED_MAGNITUDE_SHARE = 0.5
@@ -10492,7 +10492,7 @@ HEDGED_SHIFT_CARRIED = "inflated_any"
 #: fitted on its determined directions only (those within ``vif_max``, :func:`_determined` with ``drop``: the reading
 #: :data:`VIF_DROP_BEYOND_MAX` makes), so that the shift carried is the one the inflated directions make, not the
 #: whole term's (a hedged cause not inflated, under ``"hedged"``, keeps the reading without it). Session 33 (vif33).
-HEDGED_SHIFT_READING = "without"
+HEDGED_SHIFT_READING = "determined"
 #: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated
 #: beyond ``vif_max`` themselves (True), or in every other passing form (False). A reading inflated as the adopted
 #: one is carries its own amplification along the inflated direction into the shift: on gen_a thermal_drift

@@ -192,3 +192,19 @@ def test_inflated_signal_hedge_needs_both_conditions(monkeypatch):
     assert sp["p_determined"] > 0.1 and sp["magnitude_share_inflated"] > D.INFLATED_MAGNITUDE_SHARE
     Q, E, r, _ = _split_case(eps=0.2, alpha=0.1, beta=0.001, gamma=1.5)  # inflation 26: nothing beyond vif_max
     assert D._inflated_split(Q, E, r, len(r) - 2, vif_max=100.0) is None
+
+
+def test_rules_as_shipped():
+    """Both on since session 33 (vif33: measured on the tuning seeds, docs/discovery.md "Session 33: a term nearly
+    inside the baseline"); HEDGED_SHIFT_CARRIED as session 32 left it."""
+    assert D.INFLATED_SIGNAL_HEDGED is True and D.INFLATED_MAGNITUDE_SHARE == 0.5
+    assert D.HEDGED_SHIFT_READING == "determined" and D.HEDGED_SHIFT_CARRIED == "inflated_any"
+
+
+@pytest.mark.slow
+def test_gen_b_stylus_bending_9702_aim_fails_without_the_hedge(monkeypatch):
+    """The aim's test (diag32's, a strict xfail until session 33) fails with INFLATED_SIGNAL_HEDGED off."""
+    monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)
+    log, _ = gen_b.generate("stylus_bending", 9702)
+    rep = discovered(log).to_report()
+    assert rep["cause"] == "probe_lobing" and rep["findings"][0]["evidence"]["confidence"] == "named"
