@@ -992,15 +992,23 @@ def test_centred_turn_sees_a_reseat_the_targets_half_absorb():
 
 
 @pytest.mark.parametrize("seed, cause", [(1047, "stylus_bending"), (1060, "c_drift")])
-def test_a_named_cause_beside_turned_outliers_is_in_doubt(seed, cause):
+def test_a_named_cause_beside_turned_outliers_is_in_doubt(seed, cause, monkeypatch):
     """gen_a reseat_hysteresis (out of catalogue) 1047 and 1060 name a catalogue cause confidently, with an
     outlier finding beside it whose residuals follow the centred turn (p 8e-5, 0.0023 < alpha_family): the
     re-seat's minority readings; its other readings are in the fit, where the named cause may be taking their
     share. The named cause must not stay confident (both confident on main e880365: the test fails there), and
-    the reason names the turn."""
+    the reason names the turn. (Since session 33, vif33, 1060's c_drift is hedged before the turn is asked: its
+    one direction inflated 3370 times carries all of its 43 um RMS of fitted values, 0.12 um on the determined
+    one, :data:`core.discover.INFLATED_SIGNAL_HEDGED`; the turn's reason is read with that hedge off, and the
+    cause stays ambiguous with it on.)"""
     import importlib
 
+    import core.discover as D
+
     log, _ = importlib.import_module("scenarios.blind.gen_a").generate("reseat_hysteresis", seed)
+    on = next(f for f in discovered(log).to_report()["findings"] if f["cause"] != "unexplained")
+    assert on["cause"] == cause and on["evidence"]["confidence"] == "ambiguous", on["evidence"]
+    monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)
     rep = discovered(log).to_report()
     # (1047's stylus_bending explains less than the turned outliers carry: session 25's
     # NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED puts `unexplained` ahead of it, the cause second)

@@ -80,6 +80,7 @@ def test_8907_shift_is_the_term_left_out_known_answer(monkeypatch):
     ``unexplained`` finding has no term), so the model without part_change is the baseline itself and the carried
     shift is ``D = extended - baseline`` per target: ``U95_with^2 - U95_without^2 = D^2`` (``D D^T / 4`` at k = 2),
     to rounding (relative 1e-9 of the U95 squared: sums of the same doubles in another order)."""
+    monkeypatch.setattr(D, "HEDGED_SHIFT_READING", "without")  # (session 32's reading; vif33's is pinned there)
     monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
     r0 = _report_8907()
     monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", "inflated")

@@ -320,8 +320,17 @@ NOW_RIGHT = [("gen_a", "thermal_drift", 1109), ("gen_b", "thermal_drift", 1001),
 
 
 @pytest.mark.parametrize("gen, effect, seed", NOW_RIGHT)
-def test_once_misnamed_now_named(gen, effect, seed):
+def test_once_misnamed_now_named(gen, effect, seed, monkeypatch):
+    """Session 33 (vif33): gen_b thermal_drift 1001's warm-up is read through directions inflated up to 1352 times
+    (its determined four alone not significant): :data:`core.discover.INFLATED_SIGNAL_HEDGED` names it with doubt,
+    the name right; confident with that hedge off (its measured price: 8 of gen_b thermal_drift 1000-1039)."""
+    import core.discover as D
+
     o = _blind_case(gen, effect, seed)
+    if (gen, seed) == ("gen_b", 1001):
+        assert o.cause == effect and not o.confident, (o.cause, o.confident)
+        monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)
+        o = blind_outcome(_blind(gen), effect, seed, generator=gen)  # (not the cached outcome: the hedge off)
     assert o.cause == effect and o.confident, (o.cause, o.confident)
 
 
