@@ -46,7 +46,7 @@ def test_a_mixed_log_keeps_exact_nominals_and_3_decimal_readings_through_write_r
     log = _wall(0.3, seed=1)
     text = format_probe_log(log)
     lines = text.splitlines()
-    assert f"# number_format: shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3" in lines
+    assert "# number_format: shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3" in lines
     header = lines.index(next(ln for ln in lines if ln.startswith("setup,")))
     row = lines[header + 1].split(",")
     cols = lines[header].split(",")

@@ -20,7 +20,7 @@ from scenarios import vcmm as S
 from sim.machine import Machine
 from sim.machinefile import resolve
 from tests.scenarios.test_vcmm_line_profile import meas
-from tests.scenarios.test_vcmm_study import BORE, C_MM, R_MM, plan_of
+from tests.scenarios.test_vcmm_study import BORE, C_MM, plan_of
 
 TOP = [(-30, -20), (-30, 0), (-30, 20), (-15, -20), (-15, 20), (30, -20), (30, 20), (10, -22)]   # block_plan's top
 PLAN = plan_of([("top", (x, y, 0.0), (0.0, 0.0, 1.0)) for x, y in TOP])
