@@ -3980,8 +3980,11 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: 
 #: (the reading before session 33); ``"hedged"``: the ``unexplained`` finding stays, flagged ``ambiguous`` with the
 #: figures; ``"none"``: no structure (the report's ``structure.extended.lack_of_fit_alone`` says why). gen_b none
 #: 9704 (spent blind, session 32's diag32): repeats 0.152 um on 24 dof against the fit's 0.275 um on 116 (true
-#: 0.280), lack of fit F = 3.89, p = 1.9e-4, odds of a floor that low 4.3e-4. Session 33 (fa33; docs/discovery.md).
-LOF_ALONE_FLOOR_GUARD = None
+#: 0.280), lack of fit F = 3.89, p = 1.9e-4, odds of a floor that low 4.1e-4 against the fit's scatter; gen_a
+#: reseat_hysteresis 1036 (tuning, out of the catalogue, a right ``unexplained`` on the lack of fit alone: F = 20.2 on
+#: 78 and 6 dof) has odds 6.0e-4: no level on the odds drops the first and keeps the second, so ``"none"`` is off and
+#: ``"hedged"`` (no cause changes; only such a reading's confidence) is on. Session 33 (fa33; docs/discovery.md).
+LOF_ALONE_FLOOR_GUARD = "hedged"
 #: The floor's lower-tail odds (:func:`_lack_of_fit_alone`'s ``p_floor``) at or above which a lack of fit alone is
 #: softened by :data:`LOF_ALONE_FLOOR_GUARD`: 0 softens every lack of fit alone; ``Settings.alpha_family`` would
 #: judge the low-floor reading at the level the lack of fit is judged at.
