@@ -165,3 +165,22 @@ def test_the_floor_odds_are_the_f_tests_own_figure():
     st = NS(rss=116 * (0.27517e-6) ** 2, dof=116)
     a = D._lack_of_fit_alone(base, NS(F=3.8929, p_value=1.86e-4, dof=92, dof_pe=24, sigma_lof_m=0.0), st, None)
     assert a["p_floor"] == pytest.approx(4.10e-4, abs=0.01e-4) and a["repeats_sigma_um"] == pytest.approx(0.1516, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_an_unnamed_smooth_adopted_beside_the_lack_of_fit_is_evidence_of_its_own(monkeypatch):
+    """gen_a reseat_hysteresis 1036 (tuning, out of the catalogue): the extended structure stands on the lack of fit
+    alone (F = 20.2 on 78 and 6 dof, floor odds 6.0e-4, beside 9704's 4.1e-4), and the unnamed smooth it lets the
+    search try is adopted for its held-out gain (the turn from the previous touch): the reading stays confident under
+    either mode; before session 33's exception ``"none"`` read it a confident ``outlier`` (docs/discovery.md)."""
+    from scenarios.blind import gen_a
+    log, tr = gen_a.generate("reseat_hysteresis", 1036)
+    for mode in ("hedged", "none"):
+        monkeypatch.setattr(D, "LOF_ALONE_FLOOR_GUARD", mode)
+        monkeypatch.setattr(D, "LOF_ALONE_FLOOR_P", 0.0)
+        cause, conf, ev, rep = _read(log)
+        assert cause == "unexplained" and conf and cause in tr.acceptable_causes, mode
+        alone = rep["structure"]["extended"]["lack_of_fit_alone"]
+        assert alone["smooth_adopted"] and not alone["softened"] and alone["dof_pe"] == 6
+        assert alone["p_floor"] == pytest.approx(6.0e-4, abs=0.1e-4)
+        assert ev["smooth"]["adopted"] and ev["smooth"]["covariate"] == "turn_from_previous"
