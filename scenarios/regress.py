@@ -309,7 +309,8 @@ def band_consistency(estimates: dict, k_sim: float, n: int) -> str:
             bad.append(f"{q} ({rel[worst]:.4g} x at {np.asarray(e.labels)[m][worst]})")
     why = []
     if bad:
-        why.append("U95 is not 2 sqrt(diag) of the joint covariance the band is drawn from: " + ", ".join(bad))
+        shown = bad if len(bad) <= 3 else bad[:3] + [f"{len(bad) - 3} more quantities"]  # one line per check
+        why.append("U95 is not 2 sqrt(diag) of the joint covariance the band is drawn from: " + ", ".join(shown))
     if all(getattr(e, "dof", None) is None for e in estimates.values()):
         lo, hi = sidak_k(1) - K_SIM_SLACK, sidak_k(n) + K_SIM_SLACK
         if not lo <= k_sim <= hi:

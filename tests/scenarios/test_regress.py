@@ -852,3 +852,4 @@ def test_a_u95_not_drawn_from_the_covariance_fails_the_run(shipped_runs, monkeyp
     assert len(bad.failures) == 21 and bad.simultaneous[0][1] < 0.98
     assert all(c.note.startswith("simultaneous band not trusted: U95 is not 2 sqrt(diag)") for c in bad.failures)
     assert "k_sim 0." in bad.failures[0].note and "lies outside [0.980, 1.768]" in bad.failures[0].note
+    assert "EXX (10 x at EXX@" in bad.failures[0].note and ", 18 more quantities; k_sim" in bad.failures[0].note
