@@ -38,6 +38,7 @@ Study file
     within_u95 = "simultaneous"   # every value of the simultaneous quantities within k_sim x U95 at once
     [accept.EYY]
     within_u95 = 1.0              # |identified - injected| <= 1.0 x U95 at every node
+    max_u95_um = 3.8              # optional: the largest U95 allowed (max_u95_urad for urad)
     [accept.EC0Y]
     tolerance_urad = 2.0          # or an absolute tolerance with its unit (um | urad)
 
@@ -111,10 +112,22 @@ passes for a seed when every element passes; the study passes when every
 injected|`` at the element where ``|identified - injected| / limit`` is
 largest (negative: failed by that much).
 
+``max_u95_um`` / ``max_u95_urad`` (optional, beside the rule, the quantity's unit): the check also fails when
+the largest U95 of the quantity's values exceeds it (review33a F1). The band ``k x U95`` is the run's own, so a
+regression that widens the U95 with the error (a noise read in the wrong unit, a constraint lost) would
+otherwise pass; the shipped studies pin each U95 by a rule stated in the file.
+
+The band itself is checked (:func:`band_consistency`, review33a F2): each simultaneous value's U95 must be
+``2 sqrt`` of its variance under the covariance ``k_sim`` is drawn from, and (known scales) ``k_sim`` must lie
+between one value's 0.98 and Sidak's bound; otherwise every simultaneous check of the seed fails, naming why.
+
 Power (:func:`power`, :attr:`StudyResult.power`): per checked quantity and seed, the detection limit of each
 value (the smallest change of it alone that fails the check with probability :data:`DETECTION_POWER`) and
 whether the quantity's sign is testable (a flip moves some value by its limit or more); ``vmt regress`` prints
-the quantities whose sign it cannot test, the JSON (``power``) every limit (review31b F4).
+the quantities whose sign it cannot test, the JSON (``power``) every limit (review31b F4). Per quantity also the
+smallest gain error (the quantity reported ``1 + g`` times) caught with that power, ``2 / flip_ratio``
+(:attr:`Power.smallest_gain`, its derivation and assumptions there; JSON ``smallest_gain_error``), printed one
+line per seed with how many quantities a 10 % and a 20 % gain error can pass (review33a F10).
 
 Mutations (``[mutate]``, and the ``hook`` argument of :func:`run_study`):
 the documented place where a change enters the identification, between
@@ -184,6 +197,10 @@ SIM_SEED = 20261202
 DETECTION_POWER = 0.95
 #: The one-sided normal quantile of :data:`DETECTION_POWER` (Phi^-1(0.95)).
 POWER_Z = 1.6448536269514722
+#: The gain errors (a quantity reported ``1 + g`` times) whose count of quantities that can pass them
+#: :meth:`StudyResult.gain_power` prints (review33a F10: a study that tests every sign may still pass a 20 %
+#: gain error on most quantities).
+GAIN_SUMMARY = (0.10, 0.20)
 #: ``[accept.cause] expected = "none"``: the same as ``expected = []``, discover may name no cause (a study of
 #: a machine without a hidden effect: a finding there is a false alarm, review29c).
 NO_CAUSE = "none"
@@ -251,6 +268,57 @@ def simultaneous_k(estimates, coverage: float = JOINT_COVERAGE, draws: int = SIM
     return _SIMULTANEOUS_K.get_or_compute(key, lambda: _simultaneous_k(F, U, dof, coverage, draws, seed))
 
 
+#: :func:`band_consistency`: the largest relative difference allowed between a value's U95 and ``2 sqrt`` of its
+#: variance under the joint covariance the band is drawn from (both come from one computation, so only rounding
+#: separates them: 3e-9 at most on the shipped studies, seeds 1-4; the MFB's U95 pass through its report).
+U95_REL_TOL = 1e-6
+#: :func:`band_consistency`: the slack on ``k_sim``'s bounds, twice its Monte Carlo error (about 0.01 at
+#: :data:`SIM_DRAWS` draws).
+K_SIM_SLACK = 0.02
+
+
+def sidak_k(n: int, coverage: float = JOINT_COVERAGE) -> float:
+    """Sidak's band for ``n`` independent normal values in U95 units, ``Phi^-1((1 + coverage^(1/n)) / 2) / 2``:
+    the largest ``k_sim`` any joint normal covariance gives (Sidak's inequality); 0.980 for one value."""
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf((1.0 + coverage ** (1.0 / n)) / 2.0) / 2.0
+
+
+def band_consistency(estimates: dict, k_sim: float, n: int) -> str:
+    """Why the simultaneous band of one run cannot be trusted, or ``""`` (review33a F2).
+
+    ``estimates``: the simultaneous quantities (``{name: Estimate}``). The band ``k_sim x U95`` holds
+    what it says only when each U95 is ``2 sqrt`` of the value's variance under the covariance ``F F^T``
+    it was drawn from: a U95 computed apart (a noise model changed in one place and not the other) is
+    named with its ratio (beyond :data:`U95_REL_TOL`). With known scales (no ``dof``) ``k_sim`` must also
+    lie between one value's ``Phi^-1(0.975) / 2`` (values that move together) and :func:`sidak_k` (they are
+    independent), each widened by :data:`K_SIM_SLACK`; with scales estimated from the run (ISO 230-2) the
+    studentized band is wider than Sidak's and only the U95 is checked.
+    """
+    bad = []
+    for q, e in estimates.items():
+        u = np.asarray(e.u95, float)
+        d = 2.0 * np.sqrt(np.sum(np.asarray(e.factor, float) ** 2, axis=1))
+        m = u > 1e-9
+        if not m.any():
+            continue
+        rel = u[m] / np.where(d[m] > 0, d[m], np.nan)
+        worst = int(np.nanargmax(np.abs(rel - 1.0))) if np.all(np.isfinite(rel)) else int(np.argmin(np.isfinite(rel)))
+        if not np.all(np.isfinite(rel)) or abs(rel[worst] - 1.0) > U95_REL_TOL:
+            bad.append(f"{q} ({rel[worst]:.4g} x at {np.asarray(e.labels)[m][worst]})")
+    why = []
+    if bad:
+        shown = bad if len(bad) <= 3 else bad[:3] + [f"{len(bad) - 3} more quantities"]  # one line per check
+        why.append("U95 is not 2 sqrt(diag) of the joint covariance the band is drawn from: " + ", ".join(shown))
+    if all(getattr(e, "dof", None) is None for e in estimates.values()):
+        lo, hi = sidak_k(1) - K_SIM_SLACK, sidak_k(n) + K_SIM_SLACK
+        if not lo <= k_sim <= hi:
+            why.append(f"k_sim {k_sim:.3f} lies outside [{sidak_k(1):.3f}, {sidak_k(n):.3f}] (one value's k, Sidak's "
+                       f"for {n} values), which no joint normal covariance gives")
+    return "; ".join(why)
+
+
 #: :func:`simultaneous_k` by its inputs (the factor rows and U95 drawn, the sources' dof, the coverage, draws and
 #: seed: everything the draws read, hashed): a study's mutated runs and a file's repeated checks ask for the same
 #: band again (1e5 draws, 0.06-0.3 s each). Safe: a pure function of the key; the value is an immutable tuple.
@@ -296,6 +364,10 @@ class Rule:
     others_allowed : bool
         Discover: findings beyond ``expected`` pass (``others = "allowed"``); by default each fails the
         check, named in its note (a discover that names every cause would otherwise pass, review29c).
+    max_u95 : float or None
+        ``max_u95_um`` / ``max_u95_urad``: the check also fails when the largest U95 of the quantity's values
+        exceeds it (review33a F1: the band ``k x U95`` comes from the run under test, so a regression that
+        widens the U95 with the error, a noise read in the wrong unit, a lost constraint, would pass).
     simultaneous : bool
         ``within_u95 = "simultaneous"``: pass when ``|identified - injected| <= k_sim U95``, ``k_sim``
         from the seed's joint covariance of every simultaneous quantity (:func:`simultaneous_k`).
@@ -308,6 +380,7 @@ class Rule:
     expected: tuple[str, ...] = ()
     simultaneous: bool = False
     others_allowed: bool = False
+    max_u95: float | None = None
 
     def text(self, k_sim: float | None = None, values: int = 0) -> str:
         if self.unit == "cause":
@@ -316,9 +389,11 @@ class Rule:
             return ("names " + ", ".join(self.expected) + (" (others allowed)" if self.others_allowed else
                                                            " and no other cause"))
         if self.simultaneous:
-            return ("<= k_sim x U95 (simultaneous)" if k_sim is None else
-                    f"<= {k_sim:.3f} x U95 (simultaneous, {JOINT_COVERAGE:.0%} over {values} values)")
-        return f"<= {self.k:g} x U95" if self.k is not None else f"<= {self.tolerance:g} {self.unit}"
+            t = ("<= k_sim x U95 (simultaneous)" if k_sim is None else
+                 f"<= {k_sim:.3f} x U95 (simultaneous, {JOINT_COVERAGE:.0%} over {values} values)")
+        else:
+            t = f"<= {self.k:g} x U95" if self.k is not None else f"<= {self.tolerance:g} {self.unit}"
+        return t  # (a max_u95 is named in the check's note when it fails: the limit here is the deviation's)
 
 
 @dataclass(frozen=True)
@@ -490,6 +565,20 @@ class StudyResult:
                            f"its detection limit or more, {DETECTION_POWER:.0%} power)")
         return out
 
+    def gain_power(self) -> list[str]:
+        """One line per seed: each checked quantity's smallest gain error caught with :data:`DETECTION_POWER`
+        (:attr:`Power.smallest_gain`, most sensitive first) and, for each gain of :data:`GAIN_SUMMARY`, on
+        how many quantities it can pass (is not caught with that power); empty without a power."""
+        out = []
+        for sd in dict.fromkeys(p.seed for p in self.power):
+            ps = sorted((p for p in self.power if p.seed == sd), key=lambda p: p.smallest_gain)
+            each = ", ".join(f"{p.quantity} {_percent(p.smallest_gain)}" for p in ps)
+            summ = "; ".join(f"a gain error of {g:.0%} can pass on {sum(p.smallest_gain > g for p in ps)} of "
+                             f"{len(ps)}" for g in GAIN_SUMMARY)
+            out.append(f"seed {sd}: smallest gain error caught with {DETECTION_POWER:.0%} power (one value at its "
+                       f"detection limit): {each}; {summ}")
+        return out
+
     @property
     def passed(self) -> bool:
         return all(c.passed for c in self.checks)
@@ -511,6 +600,7 @@ class StudyResult:
                 "passed": self.passed, "n_checks": len(self.checks), "n_failed": len(self.failures),
                 "seconds": [round(t, 3) for t in self.seconds],
                 "simultaneous": [{"seed": sd, "k_sim": k, "values": n, "coverage": JOINT_COVERAGE,
+                                  "k_one_value": sidak_k(1), "k_sidak": sidak_k(n),
                                   "method": f"Monte Carlo, {SIM_DRAWS} joint normal draws, seed {SIM_SEED}"}
                                  for sd, k, n in self.simultaneous],
                 "checks": [c.to_json() for c in self.checks],
@@ -534,6 +624,16 @@ class StudyResult:
                          f"with probability {JOINT_COVERAGE:.0%} under the run's joint covariance; 1 x U95 is one "
                          f"value's 95 %)")
         return "\n".join(lines)
+
+
+def _percent(g: float) -> str:
+    """A gain fraction as a percentage for the printed power line (whole percents; two significant figures
+    below 10 %; beyond 1000 % so said)."""
+    if not math.isfinite(g):
+        return "none (injected 0)"
+    if g > 10:
+        return "> 1000 %"
+    return f"{100 * g:.0f} %" if g >= 0.1 else f"{100 * g:.2g} %"
 
 
 # --------------------------------------------------------------------------- reading
@@ -660,11 +760,18 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             rules.append(Rule(q, None, None, unit, tuple(exp), others_allowed=others == "allowed"))
             continue
         allowed = ("within_u95", f"tolerance_{unit}")
+        mkey = f"max_u95_{unit}"
         for k in body:
-            if k not in allowed:
-                r.fail(f"{key}.{k}", f"unknown key (expected one of {', '.join(allowed)}; {q} is in {unit})")
+            if k not in allowed + (mkey,):
+                r.fail(f"{key}.{k}", f"unknown key (expected one of {', '.join(allowed + (mkey,))}; {q} is in {unit})")
+        max_u95 = None
+        if mkey in body:
+            if q in _NO_U95.get(ident, ()):
+                r.fail(f"{key}.{mkey}", f"{q} has no U95")
+            body = dict(body)
+            max_u95 = r.number(f"{key}.{mkey}", body.pop(mkey), positive=True)
         if len(body) != 1:
-            r.fail(key, f"expected exactly one of {', '.join(allowed)}")
+            r.fail(key, f"expected exactly one of {', '.join(allowed)} (and optionally {mkey})")
         if "within_u95" in body:
             if q in _NO_U95.get(ident, ()):
                 r.fail(f"{key}.within_u95", f"{q} has no U95; use tolerance_{unit}")
@@ -675,12 +782,12 @@ def loads_study(text: str, source: str = "<study>", base_dir=".") -> Study:
             if isinstance(v, str):
                 if v != "simultaneous":
                     r.fail(f"{key}.within_u95", f"expected a number or \"simultaneous\", got {v!r}")
-                rules.append(Rule(q, None, None, unit, simultaneous=True))
+                rules.append(Rule(q, None, None, unit, simultaneous=True, max_u95=max_u95))
             else:
-                rules.append(Rule(q, r.number(f"{key}.within_u95", v, positive=True), None, unit))
+                rules.append(Rule(q, r.number(f"{key}.within_u95", v, positive=True), None, unit, max_u95=max_u95))
         else:
             rules.append(Rule(q, None, r.number(f"{key}.tolerance_{unit}", body[f"tolerance_{unit}"],
-                                                positive=True), unit))
+                                                positive=True), unit, max_u95=max_u95))
     mutation = None
     if "mutate" in doc:
         mt = r.table("mutate", doc["mutate"])
@@ -955,8 +1062,22 @@ def check(rule: Rule, est: Estimate | None, seed: int, k_sim: float | None = Non
         ratio = np.where(lim > 0, dev / np.where(lim > 0, lim, 1.0), np.where(dev > 0, np.inf, 0.0))
     i = int(np.argmax(ratio))
     u = math.nan if est.u95 is None else float(est.u95[i])
-    return Check(seed, rule.quantity, rule.unit, text, bool(np.all(dev <= lim)), est.labels[i],
-                 float(est.injected[i]), float(est.identified[i]), u, float(lim[i]), int(dev.size))
+    ok = bool(np.all(dev <= lim))
+    note = ""
+    if ok and rule.max_u95 is not None:  # the deviation passed: does the band still have the power stated?
+        if est.u95 is None:
+            ok, note = False, f"no U95 from the identification to hold to max_u95_{rule.unit} {rule.max_u95:g}"
+        else:
+            uu = np.asarray(est.u95, float)
+            j = int(np.argmax(uu))
+            if not uu[j] <= rule.max_u95:
+                ok = False
+                note = (f"U95 at {est.labels[j]} = {uu[j]:.4g} {rule.unit} exceeds the study's max_u95_{rule.unit} "
+                        f"{rule.max_u95:g} (x {uu[j] / rule.max_u95:.2f}): the band k x U95 comes from this run, "
+                        f"so a wider U95 hides errors; |identified - injected| = {dev[i]:.4g} {rule.unit} at "
+                        f"{est.labels[i]} is within {lim[i]:.4g}")
+    return Check(seed, rule.quantity, rule.unit, text, ok, est.labels[i],
+                 float(est.injected[i]), float(est.identified[i]), u, float(lim[i]), int(dev.size), note)
 
 
 @dataclass(frozen=True)
@@ -991,6 +1112,24 @@ class Power:
         return bool(self.flip_ratio >= 1.0)
 
     @property
+    def smallest_gain(self) -> float:
+        """The smallest gain error of this quantity (all its values reported ``(1 + g)`` times, a ``scale``
+        mutation: a wrong unit, lever arm or scale in its model columns) caught with probability
+        :data:`DETECTION_POWER`, as a fraction (0.06: 6 %; inf when every injected value is 0).
+
+        A gain ``g`` moves value ``i`` by ``g x injected_i`` (the identified value is ``injected_i + e_i``;
+        reported ``(1 + g)`` times, its deviation is ``g x injected_i + (1 + g) e_i``), and one value moved by
+        its detection limit ``L_i`` or more fails with probability >= DETECTION_POWER: the gain is caught at
+        that power once ``|g| >= L_i / |injected_i|`` at one value at least, so the smallest is
+        ``min_i L_i / |injected_i| = 2 / flip_ratio`` (a flip is the gain ``g = -2``). Assumptions: the
+        error's spread stays ``U95 / 2`` (``(1 + g) e``: exact to first order in ``g``; a gain below 1
+        narrows it and only adds to the power, above 1 widens it by ``g``), ``k_sim`` and the U95 are the
+        run's own and the gain does not change them, and the quantity's other values are left out: each
+        can only add to the power, so this is an upper bound on the smallest gain caught (a gain somewhat
+        smaller may also fail, on fewer than 95 % of runs)."""
+        return 2.0 / self.flip_ratio if self.flip_ratio > 0 else math.inf
+
+    @property
     def smallest(self) -> tuple[float, str]:
         """(the smallest detection limit, where)."""
         i = int(np.argmin(self.limits))
@@ -1004,6 +1143,7 @@ class Power:
                 "injected_max_abs": float(np.max(np.abs(self.injected))),
                 "flip_ratio": float(self.flip_ratio), "flip_ratio_where": self.where,
                 "sign_testable": self.sign_testable,
+                "smallest_gain_error": None if not math.isfinite(self.smallest_gain) else self.smallest_gain,
                 "detection_limit": [float(v) for v in self.limits], "labels": list(self.labels)}
 
 
@@ -1081,12 +1221,20 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
         joint = {r.quantity: est.get(r.quantity) for r in study.rules if r.simultaneous}
         lacking = [q for q, e in joint.items() if not (isinstance(e, Estimate) and e.factor is not None
                                                        and e.u95 is not None)]
+        band = ""
         if joint and not lacking:
             k_sim, n_sim = simultaneous_k(list(joint.values()))
             sim.append((seed, k_sim, n_sim))
+            band = band_consistency(joint, k_sim, n_sim)
         why = (f"no joint band: {', '.join(lacking)} {'has' if len(lacking) == 1 else 'have'} no joint covariance"
                if lacking else "")
-        checks += [check(r, est.get(r.quantity), seed, k_sim, n_sim, why=why) for r in study.rules]
+        for r in study.rules:
+            c = check(r, est.get(r.quantity), seed, k_sim, n_sim, why=why)
+            if band and r.simultaneous:  # the band itself is wrong: no verdict drawn from it stands
+                from dataclasses import replace
+
+                c = replace(c, passed=False, note=f"simultaneous band not trusted: {band}")
+            checks.append(c)
         powers += [p for p in (power(r, est.get(r.quantity), seed, k_sim) for r in study.rules) if p is not None]
     if progress is not None:
         progress(len(study.seeds), len(study.seeds))

@@ -38,7 +38,7 @@ def run(args) -> int:
                                        + (["planar model"] if study.mutation.planar else [])) if study.mutation else "")
           + ")")
     print(res.table())
-    for line in res.sign_untestable():
+    for line in res.sign_untestable() + res.gain_power():
         print(line)
     written = []
     if args.json:
