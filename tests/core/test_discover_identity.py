@@ -250,6 +250,12 @@ smooth and of a penalised cause gains ``penalty_cv_spread`` (the held-out curve'
 gen_a thermal_bending 604 0.141, knock 1 0.149, nonrigid 2's field 11.4, gen_b fixture_slip 500 8.00, 301 57.9,
 stylus_pickup 501 42.5: none flat, so no penalty moved); every other leaf as stored (checked equal with the key
 stripped, then the key alone added).
+
+Refreshed for the fixed-share null drawn in a basis fixed by its subspace (session 33,
+``core.discover._canonical_basis``): on an AMD EPYC machine the SVD basis of session 32 gave the simulator's
+lobing_per_setup 1000 another sample (null median 0.7574, p 0.648, against the stored 0.7556, 0.645 from an Intel
+machine): its two leaves now 0.7524 and 0.6467, the same under any rotation of the bases
+(tests/core/test_discover_fixed_share_basis.py); every other leaf as stored.
 """
 
 from __future__ import annotations
