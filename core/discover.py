@@ -4009,7 +4009,7 @@ def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: 
 #: alarm both ways); ``"none"`` reads gen_c none 59 ``none`` and drops gen_b outlier 1015's second finding (F = 40.9),
 #: no cause moving, but loses a structure no diagnosis sees (tests/core/test_discover_floor33.py), so it is off.
 #: ``"hedged"`` does not remove a false alarm from issue 13's count (any cause but ``none``). Session 33 (fa33;
-#: docs/discovery.md, "Session 33: a lack of fit on a floor drawn low").
+#: docs/discovery-studies.md, "Session 33: a lack of fit on a floor drawn low").
 LOF_ALONE_FLOOR_GUARD = "hedged"
 #: The floor's lower-tail odds (:func:`_lack_of_fit_alone`'s ``p_floor``) at or above which a lack of fit alone is
 #: softened by :data:`LOF_ALONE_FLOOR_GUARD`: 0 softens every lack of fit alone; ``Settings.alpha_family`` would
@@ -5697,7 +5697,7 @@ VIF_WORST_REFUSED = False
 #: or wrong -> right, no workpiece check moved; its price, 8 confident -> hedged right names, all gen_b thermal_drift
 #: (1001, 1002, 1013, 1015, 1021, 1028, 1029, 1031: a warm-up read through a sliver beside the set-up offsets has
 #: 9702's very split and differs from it only in strength, own p_adj 1e-8 and below against 9.5e-4).
-#: docs/discovery.md, "Session 33: a term nearly inside the baseline".
+#: docs/discovery-studies.md, "Session 33: a term nearly inside the baseline".
 INFLATED_SIGNAL_HEDGED = True
 #: :data:`INFLATED_SIGNAL_HEDGED`'s share of the term's fitted values (norm over the touches) its inflated
 #: directions carry, at least.
@@ -10276,7 +10276,7 @@ def _strong_events(st0, outliers, events, settings) -> dict | None:
 #: more of the rows and touched at least once more, the time of its touches (a target whose value moves with time
 #: across its visits: a wall that bows, a part that changes); and the touches whose approach reversed the move
 #: before it (the cosine of the turn negative: a seat that lands differently after a reversal). Session 33
-#: (docs/discovery.md, "Session 33: outliers that one column of structure explains"): gen_a part_change 9707 (a
+#: (docs/discovery-studies.md, "Session 33: outliers that one column of structure explains"): gen_a part_change 9707 (a
 #: bowing wall's two early visits, delta BIC -2.4 for its target's time) and reseat_hysteresis 9702 (five odd
 #: touches of a re-seat, -19.1 for the reversal) read `outlier` confidently before. On the tuning seeds (gen_a, gen_b
 #: 1000-1039, gen_c 0-39, the simulator 4000-4019: 2,320 campaigns) it fires on 7 findings, each hedged already or
@@ -10748,7 +10748,7 @@ HEDGED_SHIFT_CARRIED = "inflated_any"
 #: check failed either way (gen_a/gen_b 1000-1039, the simulator 4000-4019, gen_c 0-39: 2,320 campaigns); the U95
 #: moved on 249 (shrank on 229, grew on 20, at most x1.68), those more than three times their error 112 -> 38 of
 #: them; ten fell below their own error, every check holding (gen_a c_drift 1013 by 0.04 um: where the determined
-#: directions carry a wrong form's bias too, the whole term's shift covered it). docs/discovery.md, "Session 33: a term nearly inside the baseline".
+#: directions carry a wrong form's bias too, the whole term's shift covered it). docs/discovery-studies.md, "Session 33: a term nearly inside the baseline".
 HEDGED_SHIFT_READING = "determined"
 #: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated
 #: beyond ``vif_max`` themselves (True), or in every other passing form (False). A reading inflated as the adopted

@@ -14,7 +14,7 @@ Both read ``unexplained`` on the lack of fit alone with the guard off; what tell
 which the campaign does not know (the repeats say 0.12 in the first, 0.3 in the second; the fit's residuals 0.3 in
 the first and more in the second), and the floor's lower-tail odds against the fit's scatter are a function of the
 same F (:func:`core.discover._lack_of_fit_alone`). The guard as shipped (:data:`core.discover.LOF_ALONE_FLOOR_GUARD`
-``"hedged"``) flags both ``ambiguous``; ``"none"`` would lose the second. docs/discovery.md, "Session 33: a lack of
+``"hedged"``) flags both ``ambiguous``; ``"none"`` would lose the second. docs/discovery-studies.md, "Session 33: a lack of
 fit on a floor drawn low".
 
 Tolerances: the repeats' scatter is judged against its own chi-square spread (24 degrees of freedom: 99.9 % of

@@ -5,7 +5,7 @@ rows kept, one free value per set-aside row) with the baseline plus one structur
 (:data:`core.discover.OUTLIERS_STRUCTURE_HEDGED`). Known answers on a made-up campaign of per-target offsets (a
 target whose value drifts with time across its visits against isolated chips, and a step after reversed
 approaches), the BIC checked against a direct least-squares fit of both models, bad input, and the two blind
-misses it was built for (docs/discovery.md, "Session 33: outliers that one column of structure explains").
+misses it was built for (docs/discovery-studies.md, "Session 33: outliers that one column of structure explains").
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@
   its term fitted on every direction and on its determined ones only, not the whole term's.
 
 Known answers on a synthetic term nearly inside a baseline (:func:`core.discover._inflated_split`), and on the
-campaigns that pin the rules. docs/discovery.md, "Session 33: a term nearly inside the baseline".
+campaigns that pin the rules. docs/discovery-studies.md, "Session 33: a term nearly inside the baseline".
 """
 
 import numpy as np
@@ -195,7 +195,7 @@ def test_inflated_signal_hedge_needs_both_conditions(monkeypatch):
 
 
 def test_rules_as_shipped():
-    """Both on since session 33 (vif33: measured on the tuning seeds, docs/discovery.md "Session 33: a term nearly
+    """Both on since session 33 (vif33: measured on the tuning seeds, docs/discovery-studies.md "Session 33: a term nearly
     inside the baseline"); HEDGED_SHIFT_CARRIED as session 32 left it."""
     assert D.INFLATED_SIGNAL_HEDGED is True and D.INFLATED_MAGNITUDE_SHARE == 0.5
     assert D.HEDGED_SHIFT_READING == "determined" and D.HEDGED_SHIFT_CARRIED == "inflated_any"
