@@ -5743,12 +5743,7 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None 
         Of them, those left out for their inflation beyond ``vif_max`` alone
         (:data:`VIF_DROP_BEYOND_MAX`; 0 without it).
     """
-    nrm = np.linalg.norm(E, axis=0)
-    nz = nrm > 0
-    En = E / np.where(nz, nrm, 1.0)
-    P = En - Q @ (Q.T @ En)
-    w, V = np.linalg.eigh(_gram_beside(P, Q, pen))
-    good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
+    nrm, nz, En, P, w, V, good = _directions_beside(Q, E, pen)
     M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
     Qe = orth(En)
     ang = _smallest_angle_deg(Q, Qe)
@@ -5765,6 +5760,24 @@ def _determined(Q: np.ndarray, E: np.ndarray, vif_max: float, pen: tuple | None 
         M = V[:, good] / np.where(nz, nrm, 1.0)[:, None]
         worst = float(1.0 / w[good].min())
     return M, best, worst, ang, int((~good).sum()), beyond
+
+
+def _directions_beside(Q: np.ndarray, E: np.ndarray, pen: tuple | None = None) -> tuple:
+    """The eigen-directions of ``E``'s normalised columns beside the model basis ``Q`` (and the ridge ``pen``).
+
+    Returns ``(nrm, nz, En, P, w, V, good)``: the columns' norms, which are non-zero, the normalised columns and
+    their part beside ``Q``, the eigenvalues ``w`` and vectors ``V`` of their Gram matrix beside the model (:func:`_gram_beside`: the
+    inflation of direction ``j`` is ``1 / w_j``), and the directions kept: not weak (``w >= WEAK_SV^2``) and
+    without a part on a zero column. Shared by :func:`_determined` and :func:`_inflated_split`, which must
+    see the same directions.
+    """
+    nrm = np.linalg.norm(E, axis=0)
+    nz = nrm > 0
+    En = E / np.where(nz, nrm, 1.0)
+    P = En - Q @ (Q.T @ En)
+    w, V = np.linalg.eigh(_gram_beside(P, Q, pen))
+    good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
+    return nrm, nz, En, P, w, V, good
 
 
 def _inflated_split(Q: np.ndarray, E: np.ndarray, r: np.ndarray, dof: int, vif_max: float,
@@ -5801,12 +5814,7 @@ def _inflated_split(Q: np.ndarray, E: np.ndarray, r: np.ndarray, dof: int, vif_m
     rss = float(r @ r)
     if E.shape[1] == 0 or not rss > 0:
         return None
-    nrm = np.linalg.norm(E, axis=0)
-    nz = nrm > 0
-    En = E / np.where(nz, nrm, 1.0)
-    P = En - Q @ (Q.T @ En)
-    w, V = np.linalg.eigh(_gram_beside(P, Q, pen))
-    good = (w >= WEAK_SV ** 2) & (np.abs(V[~nz]).max(axis=0, initial=0.0) < 1e-12)
+    nrm, nz, En, P, w, V, good = _directions_beside(Q, E, pen)
     infl = good & (w < 1.0 / vif_max)
     det = good & ~infl
     if not infl.any() or not det.any():
