@@ -524,21 +524,57 @@ def run_values(st: Setting, seed: int, runs, active: tuple | None = None, dq: li
     return out
 
 
-def true_values(st: Setting, seed: int, runs, y_nom: np.ndarray, perfect) -> np.ndarray:
+def true_values(st: Setting, seed: int, runs, y_nom: np.ndarray, perfect, *, progress=None, done_before: int = 0,
+                dask: str | None = None) -> np.ndarray:
     """Each run's true measurand values (len(runs), m) SI: the part as that run drew it, measured at the
     plan's points by the perfect machine (``perfect``) without noise, drift or the probe's drawn terms,
     at 20 C, as ``y_nom`` is. Without a ``[form]`` the part is its nominal in every run: ``y_nom``
     repeated (no run simulated). The truth is taken at the plan's points (a form between them is
-    not the measurand's)."""
+    not the measurand's).
+
+    With a ``[form]`` each run is one simulation: they go to the Dask cluster ``dask`` in tasks of
+    :data:`CHUNK_RUNS` as the measured runs do (each worker builds its own perfect machine), and
+    ``progress(done_before + k, done_before + len(runs))`` counts them. The numbers are the same either way.
+    """
+    runs = [int(k) for k in runs]
     n = len(runs)
     if not st.task.forms:
         return np.broadcast_to(np.asarray(y_nom, float), (n, len(y_nom))).copy()
+    chunks = [runs[i:i + CHUNK_RUNS] for i in range(0, n, CHUNK_RUNS)]
+    if dask:
+        from scenarios.parallel import pmap
+
+        parts = pmap(_truth_chunk, [(st, seed, c) for c in chunks], dask=dask)
+        if progress is not None:
+            progress(done_before + n, done_before + n)
+        return np.vstack(parts) if parts else np.empty((0, len(st.task.measurands)))
     out = np.empty((n, len(st.task.measurands)))
+    k = 0
+    for c in chunks:
+        out[k:k + len(c)] = _truth_runs(st, seed, c, perfect)
+        k += len(c)
+        if progress is not None:
+            progress(done_before + k, done_before + n)
+    return out
+
+
+def _truth_runs(st: Setting, seed: int, runs, perfect) -> np.ndarray:
+    """The true values of ``runs`` (a ``[form]`` task): each run's drawn forms measured by ``perfect``."""
+    out = np.empty((len(runs), len(st.task.measurands)))
     for i, k in enumerate(runs):
         coeffs = {key: v for key, v in draw(st, seed, int(k))[0].items() if key[0] == "form"}
         p = simulate_run(st, coeffs, None, noise=False, machine=perfect)
         out[i] = V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
     return out
+
+
+def _truth_chunk(task) -> np.ndarray:
+    """A Dask task: the true values of a chunk of runs (module level: picklable; the worker builds the
+    perfect machine, which does not travel)."""
+    from sim.machine import Machine
+
+    st, seed, runs = task
+    return _truth_runs(st, seed, runs, Machine(dataclasses.replace(st.config, errors={})))
 
 
 #: First run index of the Sobol matrices (apart from the adaptive runs, which count from 0).
@@ -686,7 +722,8 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
         done += sobol_runs * (len(st.sources) + 2)
     # the error about the true value, run by run (review33a F6: a form's noise bias left measured +- U95
     # covering the true flatness in 15 % of runs): the runs' own parts, so a drawn form is in the truth
-    err = vals - true_values(st, seed, range(len(vals)), y_nom, perfect)
+    err = vals - true_values(st, seed, range(len(vals)), y_nom, perfect, progress=progress, done_before=done,
+                             dask=dask)
     elapsed = time.perf_counter() - t0
     out = []
     for j, m in enumerate(task.measurands):

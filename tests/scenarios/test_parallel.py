@@ -74,3 +74,27 @@ def test_vcmm_dask_gives_the_same_result_per_seed(dask_cluster):
     assert serial["runs"] == remote["runs"]
     assert np.array_equal(serial["values_si"], remote["values_si"])
     assert [t["u_dq_um"] for t in serial["touches_u"]] == [t["u_dq_um"] for t in remote["touches_u"]]
+
+
+def test_vcmm_dask_true_values_of_a_drawn_form_are_the_serial_ones(dask_cluster):
+    """A [form] task's truth runs (one simulation each) go to the cluster too: the same errors about the
+    true value, run by run, and the progress line counts them (it ends at the truth's last run)."""
+    from core.vcmm import loads_task
+    from scenarios import vcmm as S
+    from sim.machinefile import resolve
+    from tests.scenarios.test_vcmm_line_profile import meas
+    from tests.scenarios.test_vcmm_study import BORE
+
+    task = loads_task('[features.bore]\nkind = "circle"\nfeature = "bore"\n[probe]\nnoise_um = 0.2\n'
+                      + meas("round", "roundness", "bore") + '[form.bore]\namplitude_um = 1.5\nlobes = 3\n'
+                      + "[mc]\nbatch_runs = 20\nmax_runs = 40\n")
+    st = S.prepare(BORE, task, resolve("vmc-3axis"))
+    seen: list = []
+    serial = S.study(st, 5, budget=False, progress=lambda d, t: seen.append((d, t)))
+    remote = S.study(st, 5, budget=False, dask=dask_cluster)
+    n = len(serial["values_si"])
+    assert seen[-1] == (2 * n, 2 * n)          # n measured runs, then n truth runs, counted
+    a, b = serial["measurands"][0], remote["measurands"][0]
+    for k in ("error_interval", "error_mean", "U95_about_true", "U_covers_true", "biased"):
+        assert a[k] == b[k], k
+    assert a["error_interval"] != [0.0, 0.0]   # the truth moved: not the nominal's interval
