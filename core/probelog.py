@@ -1259,12 +1259,19 @@ def fixed_decimals(log: ProbeLog) -> dict[str, int]:
     :attr:`ProbeLog.text_steps` is a step ``10^-K`` (K from 0 to :data:`TEXT_DECIMALS_MAX` - 1), in the log's
     column order. A step of 0 (exact) or of :data:`TEXT_DECIMALS_MAX` decimals (the most the reader counts: a
     shortest round-trip repr read without the declaration) is written as its shortest round-trip repr, every digit
-    of the double, and declared exact (before session 33 such a column was cut to 12 decimals)."""
+    of the double, and declared exact (before session 33 such a column was cut to 12 decimals).
+
+    A column whose values no longer sit on their step (code changed them after they were read: a correction,
+    a shift) is written exact too, never rounded back to the step it was read with: ``round(v, K) == v`` holds
+    exactly for a value read from ``K`` decimals (the nearest double to a ``K``-decimal number), and only then
+    do ``K`` decimals give the value back."""
     out = {}
     for k in _ordered(dict(log.columns)):
         d = step_decimals(log.text_steps.get(k))
         if d is not None and not _is_text_column(k, log.columns[k]) and not any(ch in k for ch in ",=;"):
-            out[k] = d  # (a name the line cannot hold, ``a;b``, is written whole: exact)
+            v = np.asarray(log.columns[k], float)
+            if np.array_equal(np.round(v, d), v, equal_nan=True):
+                out[k] = d  # (a name the line cannot hold, ``a;b``, is written whole: exact)
     return out
 
 

@@ -163,3 +163,18 @@ def test_fit_floors_on_the_declared_1_um_and_not_on_the_same_log_declared_exact(
     exact = text.replace("; decimals X_mm=3, Y_mm=3, Z_mm=3", "")
     r0 = FE.fit_log_feature(parse_probe_log(exact, "wall-exact.csv"), "plane")
     assert r0.printing_step_mm == (0.0, 0.0, 0.0) and r0.u95 == r0.u95_scatter and r0.u95["offset_n_um"] < 1e-6
+
+
+def test_a_column_changed_after_reading_is_written_exact_not_rounded_to_its_old_step():
+    """A log read from 3-decimal readings whose X_mm code then moved by 0.4 um (a correction): the writer must not
+    print it back to 3 decimals (0.4 um lost, silently). It writes that column exact and declares the rest as
+    before; the values read back are the changed ones, to the last bit."""
+    log = _wall(0.3, seed=1)
+    moved = replace(log, columns={**log.columns, "X_mm": log.columns["X_mm"] + 0.0004})
+    text = format_probe_log(moved)
+    assert "# number_format: shortest round-trip; decimals Y_mm=3, Z_mm=3" in text.splitlines()
+    back = parse_probe_log(text, "moved.csv")
+    assert back.columns["X_mm"].tolist() == moved.columns["X_mm"].tolist()
+    assert back.text_steps["X_mm"] == 0.0 and back.text_steps["Y_mm"] == 1e-3
+    # the unchanged log still prints its step (the check does not fire on values read from the step)
+    assert "decimals X_mm=3, Y_mm=3, Z_mm=3" in format_probe_log(log)
