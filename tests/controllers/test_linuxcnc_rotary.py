@@ -26,6 +26,10 @@
    at the lines and midpoints.
 5. The motor commands LinuxCNC produced are put through the exact chain again: the
    C error before (at the command) and after (at LinuxCNC's motor command).
+6. A second run loads C's table written with ``--comp-range-deg=-400:800`` (the
+   joint's limits in vmt_rotary.ini): the turn repeated every 360 deg, so the stops
+   beyond the first file's lines (-390 .. 790 deg) are compensated too; the first run
+   shows LinuxCNC holding the end lines there.
 
 Tolerances (each stated where asserted): the trims agree to the table's steepest slope
 times one servo period's last step (``compute_screw_comp()`` takes the trim at the joint's
@@ -67,8 +71,10 @@ A_TARGETS = np.array([-90.0, -45.0, 0.0, 45.0, 90.0])
 A_UP = np.array([0.0012, 0.0004, -0.0003, 0.0009, 0.0015])
 A_DOWN = np.array([-0.0004, -0.0006, -0.0011, 0.0001, 0.0007])
 #: The program's stops: (axis, angle deg). C through the turn and beyond, both ways; then A both ways.
-C_STOPS = [-60, -30, -15, 0, 15, 45, 100, 123.456, 180, 250, 315, 330, 345, 359, 360, 375, 420,
-           350, 340, 300, 200, 95, 5, 0, -10, -29, -45, -60, 10]
+C_STOPS = [-60, -30, -15, 0, 15, 45, 100, 123.456, 180, 250, 315, 330, 345, 359, 360, 375, 420, 530, 790,
+           700, 350, 340, 300, 200, 95, 5, 0, -10, -29, -45, -60, -200, -390, -375, 10]
+#: C's joint limits in vmt_rotary.ini, deg: the range the second file covers
+C_RANGE = (-400.0, 800.0)
 A_STOPS = [-90, -60, -20, 0, 45, 70, 90, 100, 60, 22.5, 0, -45, -80, -90, -100, -30]
 DWELL_S = 0.3
 JOINT = {"X": 0, "Y": 1, "Z": 2, "A": 3, "C": 4}      # trivkins coordinates=XYZAC
@@ -134,7 +140,9 @@ def match_stops(joint_log, stops):
 
 
 @pytest.fixture(scope="module")
-def loop(tmp_path_factory):
+def runs(tmp_path_factory):
+    """Two LinuxCNC runs: ``default`` (C's file with the two closing lines, A's file; C then A moved),
+    ``ranged`` (C's file over C_RANGE; C moved)."""
     from hardware.linuxcnc_sim.loop import run_program
 
     tmp = tmp_path_factory.mktemp("rotary")
@@ -143,22 +151,29 @@ def loop(tmp_path_factory):
     dev = actual - C_TARGETS
     clog = write_positioning_log(tmp / "c.csv", positioning_log(C_TARGETS, dev, dev, "C"))
     alog = write_positioning_log(tmp / "a.csv", positioning_log(A_TARGETS, A_UP, A_DOWN, "A"))
-    for log, comp in ((clog, "C.comp"), (alog, "A.comp")):
+    for log, comp, extra in ((clog, "C.comp", []), (alog, "A.comp", []),
+                             (clog, "C-ranged.comp", [f"--comp-range-deg={C_RANGE[0]:g}:{C_RANGE[1]:g}"])):
         assert main(["iso230-2", str(log), "--json", str(tmp / (comp + ".json")), "--comp-file",
-                     str(tmp / comp)]) == 0
-    stops = [("C", float(a)) for a in C_STOPS] + [("A", float(a)) for a in A_STOPS]
-    prog = tmp / "rotary.ngc"
-    prog.write_text(program(stops))
-    res = run_program(prog, None, out_dir=tmp, config="vmt_rotary.ini",
-                      comp_files={"C": tmp / "C.comp", "A": tmp / "A.comp"}, timeout_s=240)
-    assert res.ok, f"LinuxCNC: {res.errors}\n{res.output[-3000:]}"
-    return tmp, m, dev, stops, res
+                     str(tmp / comp), *extra]) == 0
+    out = {}
+    for name, stops, files in (
+            ("default", [("C", float(a)) for a in C_STOPS] + [("A", float(a)) for a in A_STOPS],
+             {"C": tmp / "C.comp", "A": tmp / "A.comp"}),
+            ("ranged", [("C", float(a)) for a in C_STOPS], {"C": tmp / "C-ranged.comp"})):
+        prog = tmp / f"{name}.ngc"
+        prog.write_text(program(stops))
+        res = run_program(prog, None, out_dir=tmp / name, config="vmt_rotary.ini", comp_files=files, timeout_s=240)
+        assert res.ok, f"LinuxCNC ({name}): {res.errors}\n{res.output[-3000:]}"
+        out[name] = (stops, {a: read_comp_file(f) for a, f in files.items()}, res)
+    return tmp, m, dev, out
 
 
-def test_the_files_close_the_turn(loop):
+def test_the_files_close_the_turn(runs):
     """C's file: the 12 targets and the two closing lines; its deviations the chain's ECC (known answer:
-    actual - target = +ECC(target) on this machine's C, to the file's 6 decimals)."""
-    tmp, m, dev, stops, res = loop
+    actual - target = +ECC(target) on this machine's C, to the file's 6 decimals). The ranged file: every
+    30 deg from -420 to 810 (the lines at or beyond C_RANGE's ends), each line the deviation of its angle
+    modulo 360."""
+    tmp, m, dev, out = runs
     rows = read_comp_file(tmp / "C.comp")
     assert list(rows[:, 0]) == [-30.0, *C_TARGETS, 360.0]
     assert np.allclose(dev, np.degrees(ECC(np.radians(C_TARGETS))), rtol=0, atol=1e-12)
@@ -168,17 +183,23 @@ def test_the_files_close_the_turn(loop):
     assert np.allclose(rows[-1, 1:] - rows[-1, 0], rows[1, 1:] - rows[1, 0], rtol=0, atol=1e-9)
     arows = read_comp_file(tmp / "A.comp")
     assert list(arows[:, 0]) == [-270.0, *A_TARGETS, 270.0]
+    ranged = read_comp_file(tmp / "C-ranged.comp")
+    assert list(ranged[:, 0]) == list(np.arange(-420.0, 811.0, 30.0))
+    ecc_deg = np.degrees(ECC(np.radians(ranged[:, 0])))
+    assert np.allclose(ranged[:, 1] - ranged[:, 0], ecc_deg, rtol=0, atol=0.5e-6 + 1e-9)
 
 
-def test_linuxcnc_commands_what_the_file_says_at_every_angle(loop):
+@pytest.mark.parametrize("name", ["default", "ranged"])
+def test_linuxcnc_commands_what_the_file_says_at_every_angle(runs, name):
     """At every stop, motor-pos-cmd - pos-cmd of A and C equals the file's trim at the joint's command, in
     the column of the joint's last move (forward after +, reverse after -; a joint not moved since start-up:
     none, LinuxCNC keeps its initial 0), linear between lines, the end lines' trims held beyond them
     (compute_screw_comp, control.c). Both through JointTable and by hand at chosen angles."""
-    tmp, m, dev, stops, res = loop
+    tmp, m, dev, out = runs
+    stops, files, res = out[name]
     recs = match_stops(res.joint_log, stops)
-    tabs = {a: JointTable.from_type0(read_comp_file(tmp / f"{a}.comp")) for a in ("A", "C")}
-    tol = {a: trim_tol(read_comp_file(tmp / f"{a}.comp")) for a in ("A", "C")}
+    tabs = {a: JointTable.from_type0(r) for a, r in files.items()}
+    tol = {a: trim_tol(r) for a, r in files.items()}
     pos = {"A": 0.0, "C": 0.0}
     last_dir = {"A": 0, "C": 0}
     got, want, rows = {"A": [], "C": []}, {"A": [], "C": []}, []
@@ -190,12 +211,22 @@ def test_linuxcnc_commands_what_the_file_says_at_every_angle(loop):
         for a in ("A", "C"):
             j = JOINT[a]
             trim = r["motor_pos_cmd"][j] - r["pos_cmd"][j]
-            exp = 0.0 if last_dir[a] == 0 else float(tabs[a].trim(np.array([pos[a]]), last_dir[a])[0])
+            exp = 0.0 if last_dir[a] == 0 or a not in tabs else float(tabs[a].trim(np.array([pos[a]]),
+                                                                                   last_dir[a])[0])
             got[a].append(trim), want[a].append(exp)
         rows.append(f"{axis}{ang:+9.3f}  A trim {got['A'][-1]:+.9f} (file {want['A'][-1]:+.9f})  "
                     f"C trim {got['C'][-1]:+.9f} (file {want['C'][-1]:+.9f}) deg")
     for a in ("A", "C"):
-        assert np.allclose(got[a], want[a], rtol=0, atol=tol[a]), "\n".join(rows)
+        assert np.allclose(got[a], want[a], rtol=0, atol=tol.get(a, 0.0)), "\n".join(rows)
+    print(f"\n{name}:\n" + "\n".join(rows))
+    if name == "ranged":
+        # by hand: beyond the first file's lines, the repeated turn (trim of the angle modulo 360)
+        c0 = {r[0]: r for r in read_comp_file(tmp / "C.comp")}
+        c_trim = {ang: g for (axis, ang), g in zip(stops, got["C"]) if axis == "C"}
+        f60, f90 = c0[60.0][0] - c0[60.0][1], c0[90.0][0] - c0[90.0][1]
+        assert c_trim[790.0] == pytest.approx(f60 + (f90 - f60) / 3, abs=tol["C"])     # 70 deg's place, moving +
+        assert c_trim[-390.0] == pytest.approx(c0[330.0][0] - c0[330.0][2], abs=tol["C"])   # 330's, moving -
+        return
     # by hand, from the file's lines (trim = nominal - forward, resp. reverse)
     crow = {r[0]: r for r in read_comp_file(tmp / "C.comp")}
     fwd = {k: v[0] - v[1] for k, v in crow.items()}
@@ -218,21 +249,28 @@ def test_linuxcnc_commands_what_the_file_says_at_every_angle(loop):
     assert a_trim[0.0][0] == pytest.approx(-arow[0.0][1], abs=tol["A"])
     assert a_trim[0.0][1] == pytest.approx(-arow[0.0][2], abs=tol["A"])
     assert got["A"][:len(C_STOPS)] == [0.0] * len(C_STOPS)                                 # A not moved yet
-    print("\n" + "\n".join(rows))
 
 
-def test_the_c_error_through_the_exact_chain_before_and_after(loop):
-    """LinuxCNC's motor commands through the exact chain: at the tested angles the C error falls from ECC to
-    the file's rounding; between them, inside the file's lines (-30 .. 360 deg, across 330 -> 360 and
-    0 -> -30), to the interpolation bound; beyond the lines LinuxCNC holds the end trims, so there the
-    error is ECC(angle) - ECC(end line's angle): stated, not compensated."""
-    tmp, m, dev, stops, res = loop
+def c_errors(m, stops, res):
+    """(commands, motor commands, error before, error after): C's stops, deg, and errors, rad."""
     recs = match_stops(res.joint_log, stops)
     j = JOINT["C"]
     cmd = np.array([r["pos_cmd"][j] for (axis, _), r in zip(stops, recs) if axis == "C"])
     motor = np.array([r["motor_pos_cmd"][j] for (axis, _), r in zip(stops, recs) if axis == "C"])
     before = np.radians(c_actual_deg(m, cmd) - cmd)               # rad: the machine without compensation
     after = np.radians(c_actual_deg(m, motor) - cmd)              # rad: at LinuxCNC's motor command
+    return cmd, motor, before, after
+
+
+def test_the_c_error_through_the_exact_chain_before_and_after(runs):
+    """LinuxCNC's motor commands through the exact chain: at the tested angles the C error falls from ECC to
+    the file's rounding; between them, inside the file's lines (-30 .. 360 deg, across 330 -> 360 and
+    0 -> -30), to the interpolation bound; beyond the lines LinuxCNC holds the end trims, so there the
+    error is ECC(angle) - ECC(end line's angle): stated, not compensated. With the ranged file every stop
+    (-390 .. 790 deg) is within the interpolation bound."""
+    tmp, m, dev, out = runs
+    stops, files, res = out["default"]
+    cmd, motor, before, after = c_errors(m, stops, res)
     assert np.allclose(before, ECC(np.radians(cmd)), rtol=0, atol=1e-12)   # the chain reads ECC back
     tested = np.isclose(np.mod(cmd, C_STEP), 0) & (cmd >= -30) & (cmd <= 360)
     inside = (cmd >= -30) & (cmd <= 360)
@@ -246,6 +284,13 @@ def test_the_c_error_through_the_exact_chain_before_and_after(loop):
     end = np.where(cmd[beyond] > 360, 0.0, 330.0)                 # the line LinuxCNC holds there
     held = ECC(np.radians(cmd[beyond])) - ECC(np.radians(end))
     assert np.allclose(after[beyond], held, rtol=0, atol=slack), (cmd[beyond], after[beyond], held)
+    stops2, files2, res2 = out["ranged"]
+    cmd2, motor2, before2, after2 = c_errors(m, stops2, res2)
+    assert np.array_equal(cmd2, cmd) and np.array_equal(before2, before)
+    slack2 = ROUND_RAD + np.radians(trim_tol(files2["C"])) + 1e-9
+    on_line = np.isclose(np.mod(cmd2, C_STEP), 0) | np.isclose(np.mod(cmd2, C_STEP), C_STEP)
+    assert np.all(np.abs(after2[on_line]) <= slack2), after2[on_line]
+    assert np.all(np.abs(after2) <= bound + slack2), (cmd2, after2)
     figures = {"c_stops": int(len(cmd)), "inside_lines": int(inside.sum()),
                "before_max_urad": round(float(np.abs(before).max() * 1e6), 3),
                "after_tested_max_urad": round(float(np.abs(after[tested]).max() * 1e6), 4),
@@ -253,6 +298,10 @@ def test_the_c_error_through_the_exact_chain_before_and_after(loop):
                "interpolation_bound_urad": round(bound * 1e6, 3),
                "beyond_lines": {f"{c:g}": round(float(a * 1e6), 3) for c, a in zip(cmd[beyond], after[beyond])},
                "before_beyond_urad": {f"{c:g}": round(float(b * 1e6), 3) for c, b in zip(cmd[beyond], before[beyond])},
-               "run_s": round(res.run_s, 1), "wall_s": round(res.wall_s, 1)}
+               "ranged_after_max_urad": round(float(np.abs(after2).max() * 1e6), 3),
+               "ranged_after_beyond_first_lines_urad": {f"{c:g}": round(float(a * 1e6), 3)
+                                                        for c, a in zip(cmd2[beyond], after2[beyond])},
+               "run_s": [round(res.run_s, 1), round(res2.run_s, 1)], "wall_s": [round(res.wall_s, 1),
+                                                                                 round(res2.wall_s, 1)]}
     (tmp / "rotary_figures.json").write_text(json.dumps(figures))
     print(f"\nLinuxCNC rotary compensation loop: {json.dumps(figures)}")
