@@ -226,25 +226,28 @@ def _read_jsonl(path: Path) -> list:
     return [json.loads(ln) for ln in path.read_text().splitlines() if ln.strip()]
 
 
-def _add_comp_files(ini: Path, comp_files: dict) -> None:
+def _add_to_ini(ini: Path, comp_files: dict, wrapped: tuple = ()) -> None:
     """Give the joints of ``comp_files`` (axis letter -> file in the scratch directory) their
-    ``COMP_FILE`` and ``COMP_FILE_TYPE = 0`` (trivkins: joint j is the j-th letter of ``[TRAJ] COORDINATES``)."""
+    ``COMP_FILE`` and ``COMP_FILE_TYPE = 0`` (trivkins: joint j is the j-th letter of ``[TRAJ] COORDINATES``),
+    and each axis of ``wrapped`` ``WRAPPED_ROTARY = 1`` in its ``[AXIS_<letter>]``."""
     lines = ini.read_text().splitlines()
     coords = next((ln.split("=", 1)[1].split() for ln in lines if ln.replace(" ", "").startswith("COORDINATES=")), [])
-    for axis, name in comp_files.items():
-        if axis not in coords:
+    adds = [(f"[JOINT_{coords.index(a)}]" if a in coords else None, a, [f"COMP_FILE = {name}", "COMP_FILE_TYPE = 0"])
+            for a, name in comp_files.items()]
+    adds += [(f"[AXIS_{a}]" if a in coords else None, a, ["WRAPPED_ROTARY = 1"]) for a in wrapped]
+    for head, axis, new in adds:
+        if head is None:
             raise ConfigError(f"{ini.name}: no axis {axis!r} in COORDINATES {' '.join(coords)}")
-        head = f"[JOINT_{coords.index(axis)}]"
         if head not in lines:
             raise ConfigError(f"{ini.name}: no section {head} for axis {axis}")
         k = lines.index(head)
-        lines[k + 1:k + 1] = [f"COMP_FILE = {name}", "COMP_FILE_TYPE = 0"]
+        lines[k + 1:k + 1] = new
     ini.write_text("\n".join(lines) + "\n")
 
 
 def run_program(program, machine=None, *, probe_file: str | None = None, out_dir, parameters: dict | None = None,
                 user: str = DEFAULT_USER, timeout_s: float = 900.0, config: str = "vmt_sim.ini",
-                comp_files: dict | None = None) -> LoopResult:
+                comp_files: dict | None = None, wrapped_rotary: tuple = ()) -> LoopResult:
     """Run a part program on LinuxCNC (simulation config of this folder) against ``machine``.
 
     Parameters
@@ -272,6 +275,10 @@ def run_program(program, machine=None, *, probe_file: str | None = None, out_dir
         axis's joint: copied as ``<axis>.comp`` and named in its ``[JOINT_n]``
         (``COMP_FILE``, ``COMP_FILE_TYPE = 0``), so LinuxCNC's own loader
         (``usrmotLoadComp()``) reads it at start-up.
+    wrapped_rotary : tuple of str
+        Rotary axes made ``WRAPPED_ROTARY = 1`` (``[AXIS_<letter>]``): the
+        interpreter takes ``C10`` after ``C350`` the short way, to joint
+        position 370 (``unwrap_rotary()``, rs274ngc).
 
     Raises
     ------
@@ -290,10 +297,10 @@ def run_program(program, machine=None, *, probe_file: str | None = None, out_dir
     for f in ("vmt_display.py", "vmt_probe.py", "vmt_joints.py"):
         os.chmod(work / f, 0o755)
     shutil.copy2(program, work / "program.ngc")
-    if comp_files:
-        for axis, src in comp_files.items():
-            shutil.copy2(src, work / f"{axis}.comp")
-        _add_comp_files(work / config, {a: f"{a}.comp" for a in comp_files})
+    for axis, src in (comp_files or {}).items():
+        shutil.copy2(src, work / f"{axis}.comp")
+    if comp_files or wrapped_rotary:
+        _add_to_ini(work / config, {a: f"{a}.comp" for a in comp_files or {}}, tuple(wrapped_rotary))
     write_parameters(work / "vmt_sim.var", parameters or {})
     env = {"PATH": "/usr/local/bin:/usr/bin:/bin:/usr/sbin:/sbin", "LANG": "C.UTF-8",
            "VMT_PROGRAM": str(work / "program.ngc"), "VMT_RESULT": str(work / "result.json"),
@@ -349,7 +356,8 @@ def run_program(program, machine=None, *, probe_file: str | None = None, out_dir
                         run_s=float(res.get("run_s", float("nan"))),
                         total_s=float(res.get("total_s", float("nan"))), wall_s=wall,
                         answers=[] if server is None else server.answers,
-                        component_log=_read_jsonl(work / "vmtprobe.jsonl"), joint_log=_read_jsonl(work / "vmtjoints.jsonl"),
+                        component_log=_read_jsonl(work / "vmtprobe.jsonl"),
+                        joint_log=_read_jsonl(work / "vmtjoints.jsonl"),
                         parameters=read_parameters(work / "vmt_sim.var"), output=output)
     shutil.rmtree(work, ignore_errors=True)
     return result

@@ -30,6 +30,10 @@
    joint's limits in vmt_rotary.ini): the turn repeated every 360 deg, so the stops
    beyond the first file's lines (-390 .. 790 deg) are compensated too; the first run
    shows LinuxCNC holding the end lines there.
+7. A third run makes C ``WRAPPED_ROTARY``: the program's C words are angles modulo
+   360 and the interpreter counts turns (``unwrap_rotary()``, interp_find.cc: C10
+   after C350 is joint position 370), so the joint leaves the first file's lines in
+   ordinary use; the ranged file covers it.
 
 Tolerances (each stated where asserted): the trims agree to the table's steepest slope
 times one servo period's last step (``compute_screw_comp()`` takes the trim at the joint's
@@ -75,6 +79,10 @@ C_STOPS = [-60, -30, -15, 0, 15, 45, 100, 123.456, 180, 250, 315, 330, 345, 359,
            700, 350, 340, 300, 200, 95, 5, 0, -10, -29, -45, -60, -200, -390, -375, 10]
 #: C's joint limits in vmt_rotary.ini, deg: the range the second file covers
 C_RANGE = (-400.0, 800.0)
+#: WRAPPED_ROTARY C: (the program's C word, the joint position rs274ngc's unwrap_rotary() makes of it). A word
+#: is an angle modulo 360 (|word| < 360); positive: the nearest such position at or above the joint's, in the
+#: joint's turn or the next; negative: at or below it.
+W_STOPS = [(350, 350), (10, 370), (100, 460), (270, 630), (-200, 560), (-10, 370), (-300, 300)]
 A_STOPS = [-90, -60, -20, 0, 45, 70, 90, 100, 60, 22.5, 0, -45, -80, -90, -100, -30]
 DWELL_S = 0.3
 JOINT = {"X": 0, "Y": 1, "Z": 2, "A": 3, "C": 4}      # trivkins coordinates=XYZAC
@@ -116,11 +124,12 @@ def positioning_log(targets, up, down, axis):
     return make_positioning_log(tg, cy, di, me, unit="deg", meta={"axis": axis})
 
 
-def program(stops):
+def program(stops, words=None):
+    """G0 to each stop (``words``: the words to write instead of the stops' angles), dwelling there."""
     lines = ["%", "(vmt rotary compensation loop: each stop held for the joints' read-back)",
              "G21 G90 G94 G17", "G0 X0 Y0 Z0 A0 C0"]
-    for axis, ang in stops:
-        lines += [f"G0 {axis}{ang:.6f}", f"G4 P{DWELL_S}"]
+    for k, (axis, ang) in enumerate(stops):
+        lines += [f"G0 {axis}{ang if words is None else words[k]:.6f}", f"G4 P{DWELL_S}"]
     return "\n".join(lines + ["M2", "%"]) + "\n"
 
 
@@ -156,13 +165,16 @@ def runs(tmp_path_factory):
         assert main(["iso230-2", str(log), "--json", str(tmp / (comp + ".json")), "--comp-file",
                      str(tmp / comp), *extra]) == 0
     out = {}
-    for name, stops, files in (
+    for name, stops, files, words, wrapped in (
             ("default", [("C", float(a)) for a in C_STOPS] + [("A", float(a)) for a in A_STOPS],
-             {"C": tmp / "C.comp", "A": tmp / "A.comp"}),
-            ("ranged", [("C", float(a)) for a in C_STOPS], {"C": tmp / "C-ranged.comp"})):
+             {"C": tmp / "C.comp", "A": tmp / "A.comp"}, None, ()),
+            ("ranged", [("C", float(a)) for a in C_STOPS], {"C": tmp / "C-ranged.comp"}, None, ()),
+            ("wrapped", [("C", float(j)) for _, j in W_STOPS], {"C": tmp / "C-ranged.comp"},
+             [float(w) for w, _ in W_STOPS], ("C",))):
         prog = tmp / f"{name}.ngc"
-        prog.write_text(program(stops))
-        res = run_program(prog, None, out_dir=tmp / name, config="vmt_rotary.ini", comp_files=files, timeout_s=240)
+        prog.write_text(program(stops, words))
+        res = run_program(prog, None, out_dir=tmp / name, config="vmt_rotary.ini", comp_files=files,
+                          wrapped_rotary=wrapped, timeout_s=240)
         assert res.ok, f"LinuxCNC ({name}): {res.errors}\n{res.output[-3000:]}"
         out[name] = (stops, {a: read_comp_file(f) for a, f in files.items()}, res)
     return tmp, m, dev, out
@@ -189,7 +201,7 @@ def test_the_files_close_the_turn(runs):
     assert np.allclose(ranged[:, 1] - ranged[:, 0], ecc_deg, rtol=0, atol=0.5e-6 + 1e-9)
 
 
-@pytest.mark.parametrize("name", ["default", "ranged"])
+@pytest.mark.parametrize("name", ["default", "ranged", "wrapped"])
 def test_linuxcnc_commands_what_the_file_says_at_every_angle(runs, name):
     """At every stop, motor-pos-cmd - pos-cmd of A and C equals the file's trim at the joint's command, in
     the column of the joint's last move (forward after +, reverse after -; a joint not moved since start-up:
@@ -218,7 +230,8 @@ def test_linuxcnc_commands_what_the_file_says_at_every_angle(runs, name):
                     f"C trim {got['C'][-1]:+.9f} (file {want['C'][-1]:+.9f}) deg")
     for a in ("A", "C"):
         assert np.allclose(got[a], want[a], rtol=0, atol=tol.get(a, 0.0)), "\n".join(rows)
-    print(f"\n{name}:\n" + "\n".join(rows))
+    if name == "wrapped":
+        return
     if name == "ranged":
         # by hand: beyond the first file's lines, the repeated turn (trim of the angle modulo 360)
         c0 = {r[0]: r for r in read_comp_file(tmp / "C.comp")}
@@ -305,3 +318,28 @@ def test_the_c_error_through_the_exact_chain_before_and_after(runs):
                                                                                  round(res2.wall_s, 1)]}
     (tmp / "rotary_figures.json").write_text(json.dumps(figures))
     print(f"\nLinuxCNC rotary compensation loop: {json.dumps(figures)}")
+
+
+def test_a_wrapped_c_counts_turns_and_the_ranged_file_follows(runs):
+    """WRAPPED_ROTARY C: LinuxCNC took each C word to the joint position unwrap_rotary() gives (C10 after C350
+    is 370: match_stops finds every stop at W_STOPS' joint positions, in order), looked the ranged file up there
+    (the trims: test_linuxcnc_commands_what_the_file_says_at_every_angle[wrapped]), and the C error through the
+    exact chain is within the interpolation bound at every stop. The first file would have held its 360 line
+    (0's trim) at 370 .. 630 deg: its trims there, from JointTable (checked against LinuxCNC beyond the lines in
+    the default run), give the errors printed beside."""
+    tmp, m, dev, out = runs
+    stops, files, res = out["wrapped"]
+    cmd, motor, before, after = c_errors(m, stops, res)
+    assert list(cmd) == [float(j) for _, j in W_STOPS]
+    slack = ROUND_RAD + np.radians(trim_tol(files["C"])) + 1e-9
+    bound = (np.radians(C_STEP) ** 2 / 8) * ECC_D2_MAX
+    assert np.all(np.abs(after) <= bound + slack), (cmd, after)
+    first = JointTable.from_type0(read_comp_file(tmp / "C.comp"))
+    dirs = np.sign(np.diff(np.r_[0.0, cmd]))
+    held = np.radians(c_actual_deg(m, cmd + first.trim(cmd, dirs)) - cmd)
+    figures = {"joint_deg": [float(c) for c in cmd], "words": [w for w, _ in W_STOPS],
+               "before_urad": [round(float(b * 1e6), 3) for b in before],
+               "after_ranged_urad": [round(float(a * 1e6), 3) for a in after],
+               "first_file_would_leave_urad": [round(float(h * 1e6), 3) for h in held],
+               "run_s": round(res.run_s, 1)}
+    print(f"\nLinuxCNC wrapped C: {json.dumps(figures)}")
