@@ -84,7 +84,9 @@ C_RANGE = (-400.0, 800.0)
 #: joint's turn or the next; negative: at or below it.
 W_STOPS = [(350, 350), (10, 370), (100, 460), (270, 630), (-200, 560), (-10, 370), (-300, 300)]
 A_STOPS = [-90, -60, -20, 0, 45, 70, 90, 100, 60, 22.5, 0, -45, -80, -90, -100, -30]
-DWELL_S = 0.3
+#: s at each stop: vmtjoints writes a stop once its pins held still SETTLE_S = 0.1 s; the rest is margin for a
+#: userspace poll loop starved on a loaded machine (a missed stop fails match_stops, naming it)
+DWELL_S = 0.5
 JOINT = {"X": 0, "Y": 1, "Z": 2, "A": 3, "C": 4}      # trivkins coordinates=XYZAC
 #: The last step in motion before a stop, deg: the joints' MAX_ACCELERATION (vmt_rotary.ini) x the servo period^2
 LAST_STEP_DEG = 1440.0 * 1e-3 ** 2
