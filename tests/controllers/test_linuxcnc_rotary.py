@@ -14,7 +14,7 @@
 3. LinuxCNC 2.9 (``hardware/linuxcnc_sim/vmt_rotary.ini``: trivkins X Y Z A C,
    C not wrapped) loads both files with its own mechanism (``[JOINT_n] COMP_FILE``,
    ``COMP_FILE_TYPE = 0``, ``usrmotLoadComp()``) and runs a program that turns C
-   through the turn and beyond (-60 .. 420 deg, across 330 -> 360 and 0 -> -30 both
+   through the turn and beyond (-390 .. 790 deg, across 330 -> 360 and 0 -> -30 both
    ways) and A both ways, dwelling at each stop; ``vmt_joints.py`` reads back, at
    each stop, each joint's command (``pos-cmd``) and what LinuxCNC sends the motor
    (``motor-pos-cmd``).
@@ -70,7 +70,7 @@ ECC = Periodic(12e-6, 2 * np.pi, 0.3) + Periodic(4e-6, np.pi, 1.0) + Constant(2e
 ECC_D2_MAX = 12e-6 + 4 * 4e-6
 C_TARGETS = np.arange(0.0, 360.0, 30.0)          # deg: 12 targets, less than a turn
 C_STEP = 30.0
-#: A's hand-made test: mean deviations (deg) approaching in + and in - (a lead of 0.0016 deg .. 0.0008 deg)
+#: A's hand-made test: mean deviations (deg) approaching in + and in - (up minus down 0.0008 .. 0.0016 deg)
 A_TARGETS = np.array([-90.0, -45.0, 0.0, 45.0, 90.0])
 A_UP = np.array([0.0012, 0.0004, -0.0003, 0.0009, 0.0015])
 A_DOWN = np.array([-0.0004, -0.0006, -0.0011, 0.0001, 0.0007])
