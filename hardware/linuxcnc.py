@@ -750,7 +750,7 @@ def comp_file(res, axis: str, step_m: float | None = None, joint_offset_m: float
     return comp_text(np.column_stack([nom, act, act]))
 
 
-def positioning_comp_file(test) -> str:
+def positioning_comp_file(test, range_deg=None) -> str:
     """LinuxCNC TYPE 0 compensation file from an ISO 230-2 positioning test of one axis.
 
     One line per target ``P_i``: ``nominal forward reverse`` with nominal the
@@ -769,6 +769,11 @@ def positioning_comp_file(test) -> str:
     ----------
     test : core.positioning.PositioningLog or PositioningTest
         In the log's unit (mm; degrees for a rotary joint).
+    range_deg : (lo, hi) or None
+        A rotary test only: the joint positions the table must cover, deg (the
+        joint's ``MIN_LIMIT``, ``MAX_LIMIT``): the test's turn repeated every
+        360 deg out to them (:func:`rotary_wrap_rows`). Default: the two
+        closing lines.
 
     Returns
     -------
@@ -778,13 +783,16 @@ def positioning_comp_file(test) -> str:
     Raises
     ------
     ConfigError
-        More than :data:`COMP_SIZE` lines. (A log that cannot be arranged
+        More than :data:`COMP_SIZE` lines; ``range_deg`` on a linear test or
+        not two finite numbers lo < hi. (A log that cannot be arranged
         raises :class:`core.positioning.PositioningLogError`.)
     """
     from core.exceptions import ConfigError
     from core.positioning import PositioningLog, arrange
 
     t = arrange(test) if isinstance(test, PositioningLog) else test
+    if range_deg is not None and t.unit != "deg":
+        raise ConfigError(f"positioning_comp_file: a range in degrees is for a rotary test, this one is in {t.unit}")
     if t.m > COMP_SIZE:
         raise ConfigError(f"positioning_comp_file: {t.m} targets, LinuxCNC takes at most {COMP_SIZE} per joint")
     nom = np.asarray(t.targets, float) + float(t.joint_offset)
@@ -792,10 +800,12 @@ def positioning_comp_file(test) -> str:
     rev = nom + np.nanmean(t.dev_down, axis=1)
     rows = np.column_stack([nom, fwd, rev])
     if t.unit == "deg":
-        rows = rotary_wrap_rows(rows)
+        rows = rotary_wrap_rows(rows, range_deg)
         if len(rows) > COMP_SIZE:
-            raise ConfigError(f"positioning_comp_file: {t.m} targets and the lines closing the turn "
-                              f"(rotary_wrap_rows) make {len(rows)}, LinuxCNC takes at most {COMP_SIZE} per joint")
+            what = "the lines closing the turn" if range_deg is None else \
+                f"the turn repeated over {range_deg[0]:g}..{range_deg[1]:g} deg"
+            raise ConfigError(f"positioning_comp_file: {t.m} targets and {what} (rotary_wrap_rows) make "
+                              f"{len(rows)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
     return comp_text(rows)
 
 
@@ -803,7 +813,7 @@ def positioning_comp_file(test) -> str:
 TURN_DEG = 360.0
 
 
-def rotary_wrap_rows(rows) -> np.ndarray:
+def rotary_wrap_rows(rows, range_deg=None) -> np.ndarray:
     """A rotary joint's TYPE 0 rows (degrees) closed around the turn (review33b F6).
 
     LinuxCNC looks the table up at the joint command as it is (``compute_screw_comp`` in
@@ -813,12 +823,59 @@ def rotary_wrap_rows(rows) -> np.ndarray:
     target + 360 deg with the first target's deviations and one at the last target - 360 deg with the
     last's (a command below the first target, on an axis not wrapped to 0-360); the error is taken as
     periodic in the turn, as a table's positioning error is. A test over a whole turn or more is
-    returned as it is. ``rows``: (k, 3) nominal, forward, reverse, ascending nominals."""
+    returned as it is. ``rows``: (k, 3) nominal, forward, reverse, ascending nominals.
+
+    Those two lines cover the joint positions ``last - 360 .. first + 360``; beyond them LinuxCNC
+    holds the end lines (checked on LinuxCNC 2.9: tests/controllers/test_linuxcnc_rotary.py). A joint
+    that goes further (limits beyond one turn; a ``WRAPPED_ROTARY`` axis, whose joint position counts
+    turns: rs274ngc's ``unwrap_rotary()`` takes C350 then C10 to joint position 370) needs
+    ``range_deg = (lo, hi)``, its ``MIN_LIMIT`` and ``MAX_LIMIT``: the rows of the test's first turn
+    (nominals below first + 360) are repeated every 360 deg, below the first target and above the
+    last, out to the first line at or beyond each end; the measured rows are kept as they are (a test
+    over more than a turn keeps all its own). Without ``range_deg``: the range ``(last - 360,
+    first + 360)`` below a whole turn, none from a whole turn on (the rows as they are)."""
     rows = np.asarray(rows, float)
     first, last = rows[0], rows[-1]
-    if last[0] - first[0] >= TURN_DEG - 1e-9:
-        return rows
-    return np.vstack([last - TURN_DEG, rows, first + TURN_DEG])
+    if range_deg is None:
+        if last[0] - first[0] >= TURN_DEG - 1e-9:
+            return rows
+        return np.vstack([last - TURN_DEG, rows, first + TURN_DEG])
+    from core.exceptions import ConfigError
+
+    try:
+        lo, hi = (float(v) for v in range_deg)
+    except (TypeError, ValueError):
+        raise ConfigError(f"rotary_wrap_rows: range_deg must be two numbers (lo, hi), got {range_deg!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ConfigError(f"rotary_wrap_rows: range_deg must be finite, lo < hi, got {range_deg!r}")
+    turn = rows[rows[:, 0] < first[0] + TURN_DEG - 1e-9]
+    copies = math.ceil(max(first[0] - lo, 0.0) / TURN_DEG) + math.ceil(max(hi - last[0], 0.0) / TURN_DEG)
+    if copies * len(turn) > 4 * COMP_SIZE:           # far beyond LinuxCNC's table: said before building it
+        raise ConfigError(f"rotary_wrap_rows: the turn ({len(turn)} lines) repeated over {lo:g}..{hi:g} deg makes "
+                          f"about {copies * len(turn)} lines, LinuxCNC takes at most {COMP_SIZE} per joint")
+    shift = np.array([TURN_DEG, TURN_DEG, TURN_DEG])
+    below, above = [], []
+    k = 1
+    while lo < first[0] - 1e-9:                      # copies below the first target, down past lo
+        c = turn - k * shift
+        below.insert(0, c[c[:, 0] < first[0] - 1e-9])
+        if c[0, 0] <= lo + 1e-9:
+            break
+        k += 1
+    k = 1
+    while hi > last[0] + 1e-9:                       # copies above the last target, up past hi
+        c = turn + k * shift
+        above.append(c[c[:, 0] > last[0] + 1e-9])
+        if c[-1, 0] >= hi - 1e-9:
+            break
+        k += 1
+    low = np.vstack(below) if below else np.empty((0, 3))
+    high = np.vstack(above) if above else np.empty((0, 3))
+    if len(low):                                     # from the last line at or below lo ...
+        low = low[low[:, 0] >= low[low[:, 0] <= lo + 1e-9, 0].max()]
+    if len(high):                                    # ... to the first at or above hi
+        high = high[high[:, 0] <= high[high[:, 0] >= hi - 1e-9, 0].min()]
+    return np.vstack([low, rows, high])
 
 
 def add_comp(old_rows, residual_rows) -> np.ndarray:

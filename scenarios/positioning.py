@@ -48,7 +48,8 @@ REPORT_SHARES = (8, 66, 100)
 
 
 def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertainty=None,
-                  write_log=None, comp_file=None, add_to=None, progress=None) -> tuple[dict, list[str]]:
+                  write_log=None, comp_file=None, add_to=None, comp_range_deg=None,
+                  progress=None) -> tuple[dict, list[str]]:
     """Read a positioning test, evaluate ISO 230-2, write the JSON (and report).
 
     Parameters
@@ -69,6 +70,9 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
         Also write a LinuxCNC TYPE 0 compensation table of the axis
         (:func:`hardware.linuxcnc.positioning_comp_file`: at the axis positions,
         target + the log's ``tool_offset_mm``).
+    comp_range_deg : (lo, hi), optional
+        A rotary test: the joint positions ``comp_file`` must cover, deg
+        (:func:`hardware.linuxcnc.rotary_wrap_rows`); refused on a linear test.
     add_to : path, optional
         The TYPE 0 file the joint had loaded during the test: the test measured
         its residual, and ``comp_file`` gets their sum
@@ -125,7 +129,15 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     if comp_file:
         from hardware.linuxcnc import positioning_comp_file
 
-        comp_text = positioning_comp_file(test)
+        if comp_range_deg is not None and test.unit != "deg":
+            raise ConfigError(f"--comp-range-deg: {path} is a test in {test.unit}; the range in degrees is for a "
+                              "rotary axis (a log in degrees)")
+        try:
+            comp_text = positioning_comp_file(test, comp_range_deg)
+        except ConfigError as e:
+            if comp_range_deg is None:
+                raise
+            raise ConfigError(f"--comp-range-deg {comp_range_deg[0]:g}:{comp_range_deg[1]:g}: {e}") from None
         if old_table is not None:
             from hardware.linuxcnc import add_comp, comp_text as _text
 

@@ -10,6 +10,13 @@ display program homes, runs the part program in AUTO and exits; its
 userspace component ``vmtprobe`` asks the contact server where each probing
 move meets the part, and HAL trips the probe input in the servo thread.
 
+``run_program(..., config="vmt_rotary.ini", comp_files={"C": path})`` runs
+the second configuration instead: an X Y Z A C machine without the probe
+chain, each given joint loading its compensation file through LinuxCNC's
+own ``[JOINT_n] COMP_FILE``; its userspace component ``vmtjoints`` records,
+at every stop, each joint's command and the motor command LinuxCNC makes of
+it (:attr:`LoopResult.joint_log`).
+
 Resolution: LinuxCNC latches the first servo sample past the trigger
 point, so a touch in the probe file lies on the probing line between the
 virtual machine's trigger point and one servo period of travel beyond it:
@@ -41,7 +48,11 @@ import numpy as np
 from core.exceptions import ConfigError, HardwareError
 
 HERE = Path(__file__).resolve().parent
-CONFIG_FILES = ("vmt_sim.ini", "vmt_sim.hal", "vmt_sim.tbl", "vmt_display.py", "vmt_probe.py")
+CONFIG_FILES = ("vmt_sim.ini", "vmt_sim.hal", "vmt_sim.tbl", "vmt_display.py", "vmt_probe.py",
+                "vmt_rotary.ini", "vmt_rotary.hal", "vmt_joints.py")
+#: The configurations shipped here: a 3-axis mill with the probe chain, and an X Y Z A C machine
+#: recording every joint's command and motor command at each stop (vmt_joints.py), no probe.
+CONFIGS = ("vmt_sim.ini", "vmt_rotary.ini")
 #: Servo period of ``vmt_sim.ini``, s.
 SERVO_PERIOD_S = 1e-3
 #: Length of the ray the contact server follows from a probing move's first point, mm.
@@ -145,6 +156,9 @@ class LoopResult:
         The contact server's answers, in order.
     component_log : list of dict
         ``vmtprobe``'s own record of each probing move (``late`` must be False).
+    joint_log : list of dict
+        ``vmtjoints``' record of every stop (``vmt_rotary.ini``): ``pos_cmd``,
+        ``motor_pos_cmd``, ``motor_offset``, one value per joint.
     parameters : dict[int, float]
         LinuxCNC's parameter file after the run.
     output : str
@@ -161,6 +175,7 @@ class LoopResult:
     wall_s: float
     answers: list = field(default_factory=list)
     component_log: list = field(default_factory=list)
+    joint_log: list = field(default_factory=list)
     parameters: dict = field(default_factory=dict)
     output: str = ""
 
@@ -211,17 +226,38 @@ def _read_jsonl(path: Path) -> list:
     return [json.loads(ln) for ln in path.read_text().splitlines() if ln.strip()]
 
 
-def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict | None = None,
-                user: str = DEFAULT_USER, timeout_s: float = 900.0) -> LoopResult:
+def _add_to_ini(ini: Path, comp_files: dict, wrapped: tuple = ()) -> None:
+    """Give the joints of ``comp_files`` (axis letter -> file in the scratch directory) their
+    ``COMP_FILE`` and ``COMP_FILE_TYPE = 0`` (trivkins: joint j is the j-th letter of ``[TRAJ] COORDINATES``),
+    and each axis of ``wrapped`` ``WRAPPED_ROTARY = 1`` in its ``[AXIS_<letter>]``."""
+    lines = ini.read_text().splitlines()
+    coords = next((ln.split("=", 1)[1].split() for ln in lines if ln.replace(" ", "").startswith("COORDINATES=")), [])
+    adds = [(f"[JOINT_{coords.index(a)}]" if a in coords else None, a, [f"COMP_FILE = {name}", "COMP_FILE_TYPE = 0"])
+            for a, name in comp_files.items()]
+    adds += [(f"[AXIS_{a}]" if a in coords else None, a, ["WRAPPED_ROTARY = 1"]) for a in wrapped]
+    for head, axis, new in adds:
+        if head is None:
+            raise ConfigError(f"{ini.name}: no axis {axis!r} in COORDINATES {' '.join(coords)}")
+        if head not in lines:
+            raise ConfigError(f"{ini.name}: no section {head} for axis {axis}")
+        k = lines.index(head)
+        lines[k + 1:k + 1] = new
+    ini.write_text("\n".join(lines) + "\n")
+
+
+def run_program(program, machine=None, *, probe_file: str | None = None, out_dir, parameters: dict | None = None,
+                user: str = DEFAULT_USER, timeout_s: float = 900.0, config: str = "vmt_sim.ini",
+                comp_files: dict | None = None, wrapped_rotary: tuple = ()) -> LoopResult:
     """Run a part program on LinuxCNC (simulation config of this folder) against ``machine``.
 
     Parameters
     ----------
     program : path-like
         The part program (``vmt machine program``).
-    machine : object with ``probe_move(start_m, target_m, rot_rad)``
-        The virtual machine and part (machine frame R, m).
-    probe_file : str
+    machine : object with ``probe_move(start_m, target_m, rot_rad)``, or None
+        The virtual machine and part (machine frame R, m); None: nothing answers
+        a probing move (a configuration without the probe chain, ``vmt_rotary.ini``).
+    probe_file : str or None
         The file named in the program's ``(LOGOPEN,...)``; a relative name is
         relative to the config directory, where LinuxCNC runs.
     out_dir : path-like
@@ -232,6 +268,17 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
         Unprivileged user to run as when this process is root.
     timeout_s : float
         The whole run is killed after this long (``HardwareError``).
+    config : str
+        The INI file of this folder to run (:data:`CONFIGS`).
+    comp_files : dict or None
+        Axis letter -> a LinuxCNC compensation file (TYPE 0) to load for that
+        axis's joint: copied as ``<axis>.comp`` and named in its ``[JOINT_n]``
+        (``COMP_FILE``, ``COMP_FILE_TYPE = 0``), so LinuxCNC's own loader
+        (``usrmotLoadComp()``) reads it at start-up.
+    wrapped_rotary : tuple of str
+        Rotary axes made ``WRAPPED_ROTARY = 1`` (``[AXIS_<letter>]``): the
+        interpreter takes ``C10`` after ``C350`` the short way, to joint
+        position 370 (``unwrap_rotary()``, rs274ngc).
 
     Raises
     ------
@@ -239,20 +286,27 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
         LinuxCNC missing, the user cannot be made, LinuxCNC did not finish in time.
     """
     exe = linuxcnc_path()
+    if config not in CONFIGS:
+        raise ConfigError(f"run_program: config must be one of {', '.join(CONFIGS)}, got {config!r}")
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix="vmt-linuxcnc-"))
     os.chmod(work, 0o755)
     for f in CONFIG_FILES:
         shutil.copy2(HERE / f, work / f)
-    for f in ("vmt_display.py", "vmt_probe.py"):
+    for f in ("vmt_display.py", "vmt_probe.py", "vmt_joints.py"):
         os.chmod(work / f, 0o755)
     shutil.copy2(program, work / "program.ngc")
+    for axis, src in (comp_files or {}).items():
+        shutil.copy2(src, work / f"{axis}.comp")
+    if comp_files or wrapped_rotary:
+        _add_to_ini(work / config, {a: f"{a}.comp" for a in comp_files or {}}, tuple(wrapped_rotary))
     write_parameters(work / "vmt_sim.var", parameters or {})
     env = {"PATH": "/usr/local/bin:/usr/bin:/bin:/usr/sbin:/sbin", "LANG": "C.UTF-8",
            "VMT_PROGRAM": str(work / "program.ngc"), "VMT_RESULT": str(work / "result.json"),
-           "VMT_PROBE_LOG": str(work / "vmtprobe.jsonl"), "VMT_TIMEOUT_S": str(timeout_s)}
-    cmd = [exe, str(work / "vmt_sim.ini")]
+           "VMT_PROBE_LOG": str(work / "vmtprobe.jsonl"), "VMT_JOINT_LOG": str(work / "vmtjoints.jsonl"),
+           "VMT_TIMEOUT_S": str(timeout_s)}
+    cmd = [exe, str(work / config)]
     if os.geteuid() == 0:
         pw = ensure_user(user)
         for p in [work, *work.iterdir()]:
@@ -261,8 +315,9 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
         cmd = ["runuser", "-u", pw.pw_name, "--"] + cmd
     else:
         env.update(HOME=os.environ.get("HOME", str(work)))
-    server = ContactServer(machine).start()
-    env["VMT_CONTACT"] = server.address
+    server = None if machine is None else ContactServer(machine).start()
+    if server is not None:
+        env["VMT_CONTACT"] = server.address
     t0 = time.monotonic()
     try:
         proc = subprocess.Popen(cmd, cwd=work, env=env, stdin=subprocess.DEVNULL,
@@ -277,7 +332,8 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
             raise HardwareError(f"LinuxCNC did not finish within {timeout_s + 60:g} s "
                                 f"(output in {out_dir / 'linuxcnc.out'})") from None
     finally:
-        server.stop()
+        if server is not None:
+            server.stop()
     wall = time.monotonic() - t0
     for f in ("linuxcnc_print.txt", "linuxcnc_debug.txt"):    # the launcher's own logs, in HOME
         fp = Path(env["HOME"]) / f
@@ -286,20 +342,22 @@ def run_program(program, machine, *, probe_file: str, out_dir, parameters: dict 
     (out_dir / "linuxcnc.out").write_text(output)
     res = json.loads((work / "result.json").read_text()) if (work / "result.json").is_file() else {
         "ok": False, "errors": ["the display program wrote no result (see linuxcnc.out)"], "messages": []}
-    if server.error:
+    if server is not None and server.error:
         res["errors"].append(server.error)
         res["ok"] = False
-    pf = Path(probe_file)
-    pf = pf if pf.is_absolute() else work / pf
     copied = None
-    if pf.is_file():
+    pf = None if probe_file is None else Path(probe_file)
+    pf = pf if pf is None or pf.is_absolute() else work / pf
+    if pf is not None and pf.is_file():
         copied = out_dir / pf.name
         shutil.copy2(pf, copied)
     result = LoopResult(ok=bool(res["ok"]), probe_file=copied, errors=list(res["errors"]),
                         messages=list(res["messages"]), homed_s=float(res.get("homed_s", float("nan"))),
                         run_s=float(res.get("run_s", float("nan"))),
                         total_s=float(res.get("total_s", float("nan"))), wall_s=wall,
-                        answers=server.answers, component_log=_read_jsonl(work / "vmtprobe.jsonl"),
+                        answers=[] if server is None else server.answers,
+                        component_log=_read_jsonl(work / "vmtprobe.jsonl"),
+                        joint_log=_read_jsonl(work / "vmtjoints.jsonl"),
                         parameters=read_parameters(work / "vmt_sim.var"), output=output)
     shutil.rmtree(work, ignore_errors=True)
     return result

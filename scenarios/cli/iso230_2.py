@@ -35,6 +35,12 @@ def register(sub) -> None:
                    help="with --comp-file: the compensation file the joint had loaded during the test (its COMP_FILE); "
                         "the test measured what it left (a residual), and COMP is OLD_COMP plus that residual, "
                         "to load in its place (the residual alone would undo OLD_COMP)")
+    p.add_argument("--comp-range-deg", metavar="LO:HI",
+                   help="with --comp-file, a rotary axis (a log in degrees): the joint positions the table must cover, "
+                        "deg (the joint's MIN_LIMIT:MAX_LIMIT; write --comp-range-deg=-400:800 when LO < 0): the "
+                        "test's turn repeated every 360 deg out to them. Default: the two lines closing the turn "
+                        "(last target - 360 .. first target + 360); beyond its lines LinuxCNC holds the end lines, "
+                        "so a joint that turns further (a WRAPPED_ROTARY axis counts turns) needs this")
     g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
     g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
     g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
@@ -62,6 +68,7 @@ def run(args) -> int:
     from core.exceptions import ConfigError
     from core.positioning import PositioningLogError
 
+    comp_range = _comp_range(args.comp_range_deg, args.comp_file) if args.comp_range_deg is not None else None
     given = {v: getattr(args, k) for k, v in _UNC.items() if getattr(args, k) is not None}
     try:
         unc = UncertaintyInputs(**given) if given else None
@@ -76,6 +83,7 @@ def run(args) -> int:
     with progress_line("iso230-2: % of the work") as bar:
         rep, warnings = evaluate_file(args.log, args.json, args.report, kind=args.kind, uncertainty=unc,
                                       write_log=args.write_log, comp_file=args.comp_file, add_to=args.add_to,
+                                      comp_range_deg=comp_range,
                                       progress=bar if args.report else None)
     for w in warnings:
         print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
@@ -104,6 +112,24 @@ def run(args) -> int:
         print(f"note: {args.comp_file} " + (f"is {args.add_to} plus this test's residual: load it in {args.add_to}'s "
                                             "place" if args.add_to else COMP_FILE_NOTE))
     return 0
+
+
+def _comp_range(text: str, comp_file) -> tuple:
+    """``--comp-range-deg LO:HI`` as (lo, hi): two finite numbers, LO < HI, with --comp-file (else ConfigError)."""
+    import math
+
+    from core.exceptions import ConfigError
+
+    if not comp_file:
+        raise ConfigError("--comp-range-deg: give --comp-file too (the rotary table whose lines it extends)")
+    try:
+        v = [float(x) for x in text.split(":")]
+    except ValueError:
+        v = []
+    if len(v) != 2 or not all(math.isfinite(x) for x in v) or not v[0] < v[1]:
+        raise ConfigError(f"--comp-range-deg {text!r}: expected finite LO < HI in degrees, LO:HI "
+                          "(write --comp-range-deg=-400:800 when LO < 0)")
+    return v[0], v[1]
 
 
 #: What `--comp-file` prints (review32a F2): how LinuxCNC takes the file, where it would undo a correction.

@@ -159,3 +159,69 @@ def test_rotary_file_closes_the_turn():
     assert [r[0] for r in _rows(positioning_comp_file(full))] == [0.0, 120.0, 240.0, 360.0]
     lin = _rotary_log([0, 90, 180, 270], [0.001] * 4, [0.0] * 4, unit="mm")
     assert [r[0] for r in _rows(positioning_comp_file(lin))] == [0.0, 90.0, 180.0, 270.0]
+
+
+def test_rotary_file_over_a_range():
+    """--comp-range-deg / range_deg: LinuxCNC holds a table's end lines beyond them (no modulo), so a joint
+    that turns past last - 360 .. first + 360 (a WRAPPED_ROTARY C counts turns: C350 then C10 is joint 370)
+    needs the turn repeated out to its limits. Known answer on review33b's four targets: lines every 90 deg
+    from the last at or below LO to the first at or above HI, each the deviations of its angle modulo 360;
+    the trim at 420 deg (60 deg's place) is two thirds of the way from 0's to 90's. The range of the two
+    closing lines gives the default file byte for byte; a range inside the test adds nothing; a full-turn
+    test repeats its first turn [0, 360) and keeps its measured 360 line."""
+    log = _rotary_log([0, 90, 180, 270], [0.0001, 0.0011, -0.0019, 0.0006], [-0.0001, 0.0009, -0.0021, 0.0004])
+    rows = _rows(positioning_comp_file(log, (-400, 800)))
+    assert list(rows[:, 0]) == list(np.arange(-450.0, 811.0, 90.0))
+    base = {0: (0.0001, -0.0001), 90: (0.0011, 0.0009), 180: (-0.0019, -0.0021), 270: (0.0006, 0.0004)}
+    for nom, fwd, rev in rows:
+        up, down = base[int(nom) % 360]
+        assert fwd - nom == pytest.approx(up, abs=1e-9) and rev - nom == pytest.approx(down, abs=1e-9)
+    tab = JointTable.from_type0(rows)
+    assert tab.trim(np.array([420.0]), 1)[0] == pytest.approx(-(0.0001 + (0.0011 - 0.0001) * 2 / 3), abs=1e-12)
+    assert tab.trim(np.array([-400.0]), -1)[0] == pytest.approx(-(-0.0001 + (0.0004 + 0.0001) * 4 / 9), abs=1e-12)
+    assert positioning_comp_file(log, (-90, 360)) == positioning_comp_file(log)
+    assert positioning_comp_file(log, (10, 20)) == comp_text(_rows(positioning_comp_file(log))[1:-1])
+    full = _rotary_log([0, 120, 240, 360], [0.0001, 0.0002, 0.0003, 0.0004], [0.0, 0.0, 0.0, 0.0])
+    f = _rows(positioning_comp_file(full, (-200, 500)))
+    assert list(f[:, 0]) == [-240.0, -120.0, 0.0, 120.0, 240.0, 360.0, 480.0, 600.0]
+    # -240 and -120 carry 120's and 240's, 480 and 600 likewise; the measured 360 line stays 0.0004
+    assert list(np.round(f[:, 1] - f[:, 0], 6)) == [0.0002, 0.0003, 0.0001, 0.0002, 0.0003, 0.0004, 0.0002, 0.0003]
+    lin = _rotary_log([0, 90, 180, 270], [0.001] * 4, [0.0] * 4, unit="mm")
+    for bad, msg in (((-400, 800), "for a rotary test"),):
+        with pytest.raises(ConfigError, match=msg):
+            positioning_comp_file(lin, bad)
+    for bad, msg in (((800, -400), "lo < hi"), ((0, float("nan")), "finite"), (("a", 1), "two numbers"),
+                     ((-1e6, 1e6), "LinuxCNC takes at most 256"), ((-2e4, 2e4), "LinuxCNC takes at most 256")):
+        with pytest.raises(ConfigError, match=msg):
+            positioning_comp_file(log, bad)
+
+
+def test_cli_comp_range(tmp_path, capsys):
+    """vmt iso230-2 --comp-file --comp-range-deg: the file of positioning_comp_file(log, range); bad uses one
+    line, exit 2, nothing written."""
+    from core.positioning import write_positioning_log
+
+    log = write_positioning_log(tmp_path / "c.csv", _rotary_log([0, 90, 180, 270], [0.0001, 0.0011, -0.0019, 0.0006],
+                                                               [-0.0001, 0.0009, -0.0021, 0.0004]))
+    out = tmp_path / "c.comp"
+    assert main(["iso230-2", str(log), "--json", str(tmp_path / "a.json"), "--comp-file", str(out),
+                 "--comp-range-deg=-400:800"]) == 0
+    from core.positioning import read_positioning_log
+
+    assert out.read_text() == positioning_comp_file(read_positioning_log(log), (-400, 800))
+    lin = tmp_path / "x.csv"
+    assert main(["simulate", "positioning", "--machine", "vmc-3axis", "--axis", "X", "--out", str(lin)]) == 0
+    capsys.readouterr()
+    for args, msg in (([str(log), "--comp-range-deg=-400:800"], "--comp-range-deg: give --comp-file too"),
+                      ([str(log), "--comp-file", str(tmp_path / "d.comp"), "--comp-range-deg=800:-400"],
+                       "expected finite LO < HI in degrees"),
+                      ([str(log), "--comp-file", str(tmp_path / "d.comp"), "--comp-range-deg", "10"],
+                       "expected finite LO < HI in degrees"),
+                      ([str(log), "--comp-file", str(tmp_path / "d.comp"), "--comp-range-deg=-1e6:1e6"],
+                       "--comp-range-deg -1e+06:1e+06: rotary_wrap_rows:"),
+                      ([str(lin), "--comp-file", str(tmp_path / "d.comp"), "--comp-range-deg=0:10"],
+                       "is a test in mm; the range in degrees is for a rotary axis")):
+        assert main(["iso230-2", *args, "--json", str(tmp_path / "b.json")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and msg in err and "Traceback" not in err, err
+        assert not (tmp_path / "b.json").exists() and not (tmp_path / "d.comp").exists()
