@@ -6670,7 +6670,14 @@ HELD_OUT_FALLBACK = True
 #: 3x: hedged, the margin thin). The six right names the fallback brought (session 18) clear it: gen_b
 #: thermal_drift 1023 25x (12 forms), gen_b c_drift 1920 10x (6), gen_a thermal_drift 1902 14.5x (13), gen_a
 #: c_drift 1903 12.6x (6), 1925 18.9x (6); gen_b c_drift 1028's reading is not a fallback form. Session 34 (sel34).
-FALLBACK_SELECTION_COUNTED = False
+#: Measured (on against off, 610 tuning campaigns: gen_a 1000-1024 c_drift, thermal_drift, thermal_bending,
+#: probe_lobing, lobing_per_setup, reversal; gen_b 1000-1029 c_drift, thermal_drift, probe_lobing, lobing_per_setup,
+#: reversal, stylus_bending; gen_a/gen_b 1900-1929 c_drift, thermal_drift; gen_c 0-19 c_drift, thermal_drift,
+#: clamp_creep, probe_lobing; the simulator 4000-4019 c_drift, thermal_drift, probe_lobing, lobing_per_setup):
+#: 11 have a fallback finding, 3 move, each a right name below visibility made hedged (gen_b c_drift 1910 1.0x and
+#: 1914 1.6x among 6 forms, thermal_drift 1916 2.5x among 12; visible 0.44-0.59 sigma), workpieces unchanged;
+#: nothing right -> wrong, the six names of session 18 kept. On (sel34).
+FALLBACK_SELECTION_COUNTED = True
 
 
 def _fallback_short(ev: dict) -> str | None:
@@ -6695,7 +6702,13 @@ def _fallback_short(ev: dict) -> str | None:
 #: 1,110 against 1,140 um^2, and common lobing then refused at its held-out gain, -5.11 against 0.51 um^2) the
 #: richer cause was refused in favour of a cause never adopted, and the campaign read a confident `unexplained`.
 #: The hedge says what the refusal said (the plainer explains as much); the rival check's drop for the plainer cause
-#: (:func:`_rival_share`) becomes the same hedge on such a term. Session 34 (sel34).
+#: (:func:`_rival_share`) becomes the same hedge on such a term. Session 34 (sel34). Off: it does not mend 10304
+#: (lobing_per_setup, judged again, is refused on its own plausibility check: its lobes' orientations agree across
+#: the set-ups, 14 +- 130 deg, "the probe is oriented": fixed lobes, the plainer cause, whose held-out failure is
+#: the fault there), and on the 610 tuning campaigns of :data:`FALLBACK_SELECTION_COUNTED` it fires on 15 and moves
+#: 3, all below visibility: gen_a reversal 1009 right -> wrong (`reversal?` -> `periodic_axis_error?` then
+#: lobing_per_setup; extended workpiece 0.46 -> 3.86 um, baseline 3.08, U95 1.87), gen_b probe_lobing 1003
+#: (`unexplained`) and 1012 (`outlier?`) -> `lobing_per_setup?` with probe_lobing among its alternatives.
 COUNTER_NEEDS_PLAINER_PASSING = False
 #: (:data:`COUNTER_NEEDS_PLAINER_PASSING`) the reason the plainer cause failed while a cause is judged again with the
 #: plainer-explanation refusal waived; empty: not waived. A context variable, so the judging functions keep their
