@@ -59,7 +59,9 @@ What it does, in order, and the statistics behind each step
       columns reach for a cause that books to the workpiece
       (:func:`_support_share`); where the trial of smallest p falls short,
       the cause's other significant forms are judged in turn by every test
-      (:data:`HELD_OUT_FALLBACK`); where it is confounded, b, every other
+      (:data:`HELD_OUT_FALLBACK`; the form so taken is named hedged unless
+      its gain clears the materiality times the forms it was chosen among,
+      :data:`FALLBACK_SELECTION_COUNTED`); where it is confounded, b, every other
       significant form is judged and, of those that pass, the one of least
       variance inflation beside the model is taken
       (:data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`, on since session 26;
