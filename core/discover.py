@@ -6706,8 +6706,8 @@ def _fallback_short(ev: dict) -> str | None:
 #: The hedge says what the refusal said (the plainer explains as much); the rival check's drop for the plainer cause
 #: (:func:`_rival_share`) becomes the same hedge on such a term. Session 34 (sel34). Off: it does not mend 10304
 #: (lobing_per_setup, judged again, is refused on its own plausibility check: its lobes' orientations agree across
-#: the set-ups, 14 +- 130 deg, "the probe is oriented": fixed lobes, the plainer cause, whose held-out failure is
-#: the fault there), and on the 610 tuning campaigns of :data:`FALLBACK_SELECTION_COUNTED` it fires on 15 and moves
+#: the set-ups, 14 +- 130 deg, "the probe is oriented": fixed lobes, the plainer cause, which passes every test and
+#: the rival check in two of the engine's searches there and fails its held-out test in a third), and on the 610 tuning campaigns of :data:`FALLBACK_SELECTION_COUNTED` it fires on 15 and moves
 #: 3, all below visibility: gen_a reversal 1009 right -> wrong (`reversal?` -> `periodic_axis_error?` then
 #: lobing_per_setup; extended workpiece 0.46 -> 3.86 um, baseline 3.08, U95 1.87), gen_b probe_lobing 1003
 #: (`unexplained`) and 1012 (`outlier?`) -> `lobing_per_setup?` with probe_lobing among its alternatives.
