@@ -491,13 +491,18 @@ def test_a_narrow_defect_on_a_coarse_grid_is_named_where_the_generator_put_it(se
 
 
 
-def test_defect_widths_stop_at_the_positions_resolution():
+def test_defect_widths_stop_at_the_positions_resolution(monkeypatch):
     """Bad input for the scan's half-widths: a campaign whose positions along X are too sparse for the finer
-    half-widths gets none below twice their mean spacing, and an axis whose touches sit at one place gets no
-    trial at all. On synthetic seed 0 (55 mm grid, mean spacings well below a millimetre) the half-widths
-    below 0.2 grid steps are scanned (1.4 to 22 mm); with every x moved onto 40 places (a mean spacing of
-    5 mm), only the half-widths of twice that or more are (11 and 22 mm); with every y at one place, no trial
-    on Y."""
+    half-widths gets none below half their mean spacing (core.causes.DEFECT_MIN_WIDTH_GAPS: a bump's full
+    width at least one mean spacing; twice the spacing before session 34) nor any whose bump holds fewer than
+    four distinct positions, and an axis whose touches sit at one place gets no trial at all. On synthetic
+    seed 0 (55 mm grid, mean spacings well below a millimetre) the half-widths below 0.2 grid steps are scanned
+    (1.4 to 22 mm); with every x moved onto 40 evenly spaced places (a mean spacing of 5 mm) the four positions
+    a bump needs ask for 1.5 spacings (7.5 mm): only 11 and 22 mm are scanned, as under the floor of two
+    spacings; with every y at one place, no trial on Y. Gathered in threes 0.8 mm apart, 5 mm between the
+    groups (a wall's touches; a mean spacing of 1.8 mm), the 2.75 mm half-width holds four positions between
+    two groups and is scanned; the floor of two mean spacings (3.6 mm) dropped it (the set C misses)."""
+    assert causes.DEFECT_MIN_WIDTH_GAPS == 0.5
     t, _ = S.campaign("none", 0)
     bl = baseline.planar(t, grid_step_mm=55.0)
     d = bl.data
@@ -505,15 +510,27 @@ def test_defect_widths_stop_at_the_positions_resolution():
     assert min(ws) < 0.2 * d.grid_step_m
     for axis in ("x", "y"):
         span, gap = causes._positions_gap(getattr(d, axis))
-        assert all(w >= 2 * gap for w in ws)
+        assert all(w >= 0.5 * gap for w in ws)
     lo, hi = d.x.min(), d.x.max()
     sparse = dataclasses.replace(d, x=lo + np.round((d.x - lo) / (hi - lo) * 39) * (hi - lo) / 39,
                                  y=np.full(d.y.shape, d.y[0]))
     scans = causes.defect_scans(dataclasses.replace(bl, data=sparse))[0]
     gap = causes._positions_gap(sparse.x)[1]
     assert {sc.infos[0]["axis"] for sc in scans} == {"X"}
-    assert {sc.infos[0]["half_width_m"] for sc in scans} == {w for w in ws if w >= 2 * gap}
-    assert {w for w in ws if w < 2 * gap}  # (widths the full layout scans that the sparse one must not)
+    assert {sc.infos[0]["half_width_m"] for sc in scans} == {w for w in ws if w >= 1.5 * gap}
+    assert {w for w in ws if w < 1.5 * gap}  # (widths the full layout scans that the sparse one must not)
+    # gathered in threes: place k of 120 at 5 mm * (k // 3) + 0.8 mm * (k % 3)
+    k = np.round((d.x - lo) / (hi - lo) * 119).astype(int)
+    grouped = dataclasses.replace(d, x=lo + 5e-3 * (k // 3) + 0.8e-3 * (k % 3), y=np.full(d.y.shape, d.y[0]))
+    gap = causes._positions_gap(grouped.x)[1]
+    assert 1.6e-3 < gap < 2.0e-3  # (not every one of the 120 places is occupied: 1.80 mm here)
+    w275 = min(w for w in ws if w > 2e-3)
+    assert w275 == pytest.approx(2.75e-3)
+    got = {sc.infos[0]["half_width_m"] for sc in causes.defect_scans(dataclasses.replace(bl, data=grouped))[0]}
+    assert w275 in got and min(ws) not in got  # (1.375 mm: three positions at most under it)
+    monkeypatch.setattr(causes, "DEFECT_MIN_WIDTH_GAPS", 2.0)
+    got = {sc.infos[0]["half_width_m"] for sc in causes.defect_scans(dataclasses.replace(bl, data=grouped))[0]}
+    assert w275 not in got
 
 
 @functools.cache
