@@ -47,7 +47,8 @@ def test_a_narrow_defect_read_as_a_period_is_named_on_its_axis():
     f = rep["findings"][0]
     assert rep["cause"] == "local_scale_defect", (rep["cause"], rep["rejected"])
     assert f["params"]["axis"] == truth.params["axis"] == "Y"
-    assert abs(f["params"]["centre_mm"]) == pytest.approx(abs(truth.params["centre_mm"]), abs=truth.params["half_width_mm"] / 4)
+    assert abs(f["params"]["centre_mm"]) == pytest.approx(abs(truth.params["centre_mm"]),
+                                                          abs=truth.params["half_width_mm"] / 4)
     assert 0.5 < f["params"]["half_width_mm"] / truth.params["half_width_mm"] < 2.0
     assert abs(f["params"]["amplitude_um"] - truth.physical["amplitude_um"]) < 0.2 * truth.physical["amplitude_um"]
     assert "periodic_axis_error" not in [g["cause"] for g in rep["findings"]]

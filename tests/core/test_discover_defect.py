@@ -548,8 +548,7 @@ def _blind_report(gen: str, effect: str, seed: int) -> dict:
 
 
 @pytest.mark.parametrize("gen, seed, words", [
-    ("gen_a", 1083, "a gross error at that one place (outlier) does as much, and this design cannot tell them apart"),
-    ("gen_b", 1015, "a gross error at that one place (outlier) could do as much")])
+    ("gen_a", 1083, "a gross error at that one place (outlier) does as much, and this design cannot tell them apart")])
 def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen, seed, words):
     """Two tuning campaigns of chips (the generators' outliers) read `local_scale_defect` confidently on the finer
     half-widths (core.causes.DEFECT_WIDTHS): the bump's evidence, counted over every touch, passes the
@@ -560,8 +559,8 @@ def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen
     (400 campaigns): no cause changes, these two and 7 real defects named ambiguous instead of confident. Both
     named confidently on main before (bb56e91). Session 29 (core.discover._beyond_one_place): 1083's bump reaches
     no other touch where it would move it detectably (0.25 sigma expected beyond its place), and the reason says
-    the design cannot tell the two apart; 1015's is seen beyond its place (a second chip under it), the words as
-    before."""
+    the design cannot tell the two apart; 1015's was seen beyond its place (a second chip under it), the words "a
+    gross error at that one place (outlier) could do as much"; since session 34 1015 reads `outlier` (below)."""
     rep = _blind_report(gen, "outlier", seed)
     f = next(f for f in rep["findings"] if f["cause"] == "local_scale_defect")
     ev = f["evidence"]
@@ -569,6 +568,23 @@ def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen
     assert "outlier" in ev["ambiguous_with"]
     assert words in ev["confidence_reason"]
     assert ev["support_units_reached"] < MIN_SUPPORT <= ev["support_units"]
+
+
+def test_two_chips_under_a_bump_half_the_spacing_wide_are_outliers():
+    """gen_b outlier 1015 (tuning): two chips under one bump (each seen beyond the other's place) read
+    `local_scale_defect?` (ambiguous with `outlier`, then `unexplained` and `outlier`; extended workpiece 1.60 um, U95 2.56) until the
+    scan's narrowest half-width came down to half the positions' mean spacing (core.causes.DEFECT_MIN_WIDTH_GAPS,
+    session 34): now `outlier`, confidently, the generator's own rows set aside, no bump named, the extended
+    workpiece 0.26 um (U95 0.51). (It was the tuning campaign of the words "a gross error at that one place
+    (outlier) could do as much", which no campaign of this module reaches now.)"""
+    from scenarios.blind import gen_b
+
+    _, truth = gen_b.generate("outlier", 1015)
+    rep = _blind_report("gen_b", "outlier", 1015)
+    assert rep["cause"] == "outlier", [f["cause"] for f in rep["findings"]]
+    assert rep["findings"][0]["evidence"]["confidence"] == "named", rep["findings"][0]["evidence"]
+    assert "local_scale_defect" not in [f["cause"] for f in rep["findings"]]
+    assert rep["outlier_rows"] == sorted(int(r) for r in truth.outlier_rows), (rep["outlier_rows"], truth.outlier_rows)
 
 
 def test_a_named_cause_whose_size_is_not_determined_is_ambiguous():
