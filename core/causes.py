@@ -1578,8 +1578,13 @@ DEFECT_WIDTHS = (0.025, 0.05, 0.1, 0.2, 0.4)
 #: 2.4-2.8 mm) left 8.8 mm as the narrowest half-width on the 22 mm grid, three times the blind check's 2.5-3.1 mm
 #: defects, which then read as short periods (set C: gen_a local_scale_defect 10108, 10300, 10306
 #: `periodic_axis_error?`; the bump at 8.8 mm reached touches the true one does not and was refused as carried by
-#: one place or confounded). Measured: docs/discovery.md "Session 34: bumps narrower than the mean spacing".
-#: 2.0: the behaviour before.
+#: one place or confounded; at 0.5 all three read `local_scale_defect?`, at 1.0 two). Measured on 486 tuning
+#: campaigns (gen_a every effect 1000-1009, local_scale_defect and part_change 1000-1099, periodic_axis_error and
+#: outlier 1000-1029, 16 narrow defects of 1100-1299; gen_b local_scale_defect and outlier 1000-1029): wrong -> right
+#: gen_a local_scale_defect 1121, 1246, 1299 (`periodic_axis_error?`), 1293 (`unexplained`) and gen_b outlier 1015
+#: (`local_scale_defect?` -> `outlier`), none right -> wrong, no workpiece check changed (docs/discovery.md
+#: "Session 34: bumps narrower than the mean spacing"; the simulator and gen_c not measured). 2.0: the behaviour
+#: before.
 DEFECT_MIN_WIDTH_GAPS = 0.5
 
 
