@@ -1562,13 +1562,30 @@ def _defect_cols(d, axis: int, x0, w):
 
 
 #: Half-widths of the local scale defect's trials, in grid steps (:func:`defect_scans`): halving from 0.4 down to
-#: the positions' resolution (twice their mean spacing). A damaged graduation or a chip under the scale is a few
+#: the positions' resolution (:data:`DEFECT_MIN_WIDTH_GAPS` of their mean spacing). A damaged graduation or a chip under the scale is a few
 #: mm wide whatever grid the baseline chose: on the 80 mm grid the old ladder's narrowest, 0.2 steps, was a 16 mm
 #: half-width, three to six times gen_a's 2.5-6 mm bumps, and its best trial's Hann crossed a 3 mm bump's few
 #: positions with the wrong form (gen_a local_scale_defect 1007, 1024, 1054, 1060, 1071, 1080, 1091 at 1000-1099:
 #: `unexplained`). The refinement (:func:`core.discover._refine`) spans 0.75-1.33 of a trial's width, the
 #: halving's gap.
 DEFECT_WIDTHS = (0.025, 0.05, 0.1, 0.2, 0.4)
+#: The narrowest trial half-width of :func:`defect_scans`, in mean spacings of the distinct positions along the axis
+#: (:func:`_positions_gap`): 0.5, a bump's full width (twice its half-width) at least one mean spacing. The mean
+#: spacing is the whole stroke's; a part's touches gather (a wall's two or three touches 1-2 mm apart, the walls tens
+#: of mm apart), so where a bump sits its positions are much closer than the mean, and the trial's own count (four
+#: distinct positions under the bump) is the resolution there. At 2.0 (twice the mean spacing, the floor before
+#: session 34) a symmetric part's few distinct positions (52-54 on gen_a's hexagon-pocket-sym: a mean spacing of
+#: 2.4-2.8 mm) left 8.8 mm as the narrowest half-width on the 22 mm grid, three times the blind check's 2.5-3.1 mm
+#: defects, which then read as short periods (set C: gen_a local_scale_defect 10108, 10300, 10306
+#: `periodic_axis_error?`; the bump at 8.8 mm reached touches the true one does not and was refused as carried by
+#: one place or confounded; at 0.5 all three read `local_scale_defect?`, at 1.0 two). Measured on 486 tuning
+#: campaigns (gen_a every effect 1000-1009, local_scale_defect and part_change 1000-1099, periodic_axis_error and
+#: outlier 1000-1029, 16 narrow defects of 1100-1299; gen_b local_scale_defect and outlier 1000-1029): wrong -> right
+#: gen_a local_scale_defect 1121, 1246, 1299 (`periodic_axis_error?`), 1293 (`unexplained`) and gen_b outlier 1015
+#: (`local_scale_defect?` -> `outlier`), none right -> wrong, no workpiece check changed (docs/discovery.md
+#: "Session 34: bumps narrower than the mean spacing"; the simulator and gen_c not measured). 2.0: the behaviour
+#: before.
+DEFECT_MIN_WIDTH_GAPS = 0.5
 
 
 def defect_scans(bl):
@@ -1580,7 +1597,7 @@ def defect_scans(bl):
     window, zero beyond ``|x - x0| = w``), narrower than the error map's
     grid, so the grid's interpolation cannot follow it. Scanned: both
     axes, half-widths :data:`DEFECT_WIDTHS` grid steps (0.4 halved down
-    to 0.025; never below twice the positions' mean spacing), centres
+    to 0.025; never below :data:`DEFECT_MIN_WIDTH_GAPS` of the positions' mean spacing), centres
     every quarter half-width; a trial
     needs four distinct positions under its bump. ``tries`` counts the
     independent bumps (extent over half-width, per width and axis); the
@@ -1617,7 +1634,7 @@ def defect_scans(bl):
         u = np.unique(np.round(a / 1e-6)) * 1e-6
         for fw in DEFECT_WIDTHS:
             w = fw * d.grid_step_m
-            if w < 2 * gap:
+            if w < DEFECT_MIN_WIDTH_GAPS * gap:
                 continue
             x0 = np.arange(u[0], u[-1] + 1e-12, w / 4)
             cnt = np.searchsorted(u, x0 + w) - np.searchsorted(u, x0 - w)

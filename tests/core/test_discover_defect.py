@@ -491,13 +491,18 @@ def test_a_narrow_defect_on_a_coarse_grid_is_named_where_the_generator_put_it(se
 
 
 
-def test_defect_widths_stop_at_the_positions_resolution():
+def test_defect_widths_stop_at_the_positions_resolution(monkeypatch):
     """Bad input for the scan's half-widths: a campaign whose positions along X are too sparse for the finer
-    half-widths gets none below twice their mean spacing, and an axis whose touches sit at one place gets no
-    trial at all. On synthetic seed 0 (55 mm grid, mean spacings well below a millimetre) the half-widths
-    below 0.2 grid steps are scanned (1.4 to 22 mm); with every x moved onto 40 places (a mean spacing of
-    5 mm), only the half-widths of twice that or more are (11 and 22 mm); with every y at one place, no trial
-    on Y."""
+    half-widths gets none below half their mean spacing (core.causes.DEFECT_MIN_WIDTH_GAPS: a bump's full
+    width at least one mean spacing; twice the spacing before session 34) nor any whose bump holds fewer than
+    four distinct positions, and an axis whose touches sit at one place gets no trial at all. On synthetic
+    seed 0 (55 mm grid, mean spacings well below a millimetre) the half-widths below 0.2 grid steps are scanned
+    (1.4 to 22 mm); with every x moved onto 40 evenly spaced places (a mean spacing of 5 mm) the four positions
+    a bump needs ask for 1.5 spacings (7.5 mm): only 11 and 22 mm are scanned, as under the floor of two
+    spacings; with every y at one place, no trial on Y. Gathered in threes 0.8 mm apart, 5 mm between the
+    groups (a wall's touches; a mean spacing of 1.8 mm), the 2.75 mm half-width holds four positions between
+    two groups and is scanned; the floor of two mean spacings (3.6 mm) dropped it (the set C misses)."""
+    assert causes.DEFECT_MIN_WIDTH_GAPS == 0.5
     t, _ = S.campaign("none", 0)
     bl = baseline.planar(t, grid_step_mm=55.0)
     d = bl.data
@@ -505,15 +510,27 @@ def test_defect_widths_stop_at_the_positions_resolution():
     assert min(ws) < 0.2 * d.grid_step_m
     for axis in ("x", "y"):
         span, gap = causes._positions_gap(getattr(d, axis))
-        assert all(w >= 2 * gap for w in ws)
+        assert all(w >= 0.5 * gap for w in ws)
     lo, hi = d.x.min(), d.x.max()
     sparse = dataclasses.replace(d, x=lo + np.round((d.x - lo) / (hi - lo) * 39) * (hi - lo) / 39,
                                  y=np.full(d.y.shape, d.y[0]))
     scans = causes.defect_scans(dataclasses.replace(bl, data=sparse))[0]
     gap = causes._positions_gap(sparse.x)[1]
     assert {sc.infos[0]["axis"] for sc in scans} == {"X"}
-    assert {sc.infos[0]["half_width_m"] for sc in scans} == {w for w in ws if w >= 2 * gap}
-    assert {w for w in ws if w < 2 * gap}  # (widths the full layout scans that the sparse one must not)
+    assert {sc.infos[0]["half_width_m"] for sc in scans} == {w for w in ws if w >= 1.5 * gap}
+    assert {w for w in ws if w < 1.5 * gap}  # (widths the full layout scans that the sparse one must not)
+    # gathered in threes: place k of 120 at 5 mm * (k // 3) + 0.8 mm * (k % 3)
+    k = np.round((d.x - lo) / (hi - lo) * 119).astype(int)
+    grouped = dataclasses.replace(d, x=lo + 5e-3 * (k // 3) + 0.8e-3 * (k % 3), y=np.full(d.y.shape, d.y[0]))
+    gap = causes._positions_gap(grouped.x)[1]
+    assert 1.6e-3 < gap < 2.0e-3  # (not every one of the 120 places is occupied: 1.80 mm here)
+    w275 = min(w for w in ws if w > 2e-3)
+    assert w275 == pytest.approx(2.75e-3)
+    got = {sc.infos[0]["half_width_m"] for sc in causes.defect_scans(dataclasses.replace(bl, data=grouped))[0]}
+    assert w275 in got and min(ws) not in got  # (1.375 mm: three positions at most under it)
+    monkeypatch.setattr(causes, "DEFECT_MIN_WIDTH_GAPS", 2.0)
+    got = {sc.infos[0]["half_width_m"] for sc in causes.defect_scans(dataclasses.replace(bl, data=grouped))[0]}
+    assert w275 not in got
 
 
 @functools.cache
@@ -531,8 +548,7 @@ def _blind_report(gen: str, effect: str, seed: int) -> dict:
 
 
 @pytest.mark.parametrize("gen, seed, words", [
-    ("gen_a", 1083, "a gross error at that one place (outlier) does as much, and this design cannot tell them apart"),
-    ("gen_b", 1015, "a gross error at that one place (outlier) could do as much")])
+    ("gen_a", 1083, "a gross error at that one place (outlier) does as much, and this design cannot tell them apart")])
 def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen, seed, words):
     """Two tuning campaigns of chips (the generators' outliers) read `local_scale_defect` confidently on the finer
     half-widths (core.causes.DEFECT_WIDTHS): the bump's evidence, counted over every touch, passes the
@@ -543,8 +559,8 @@ def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen
     (400 campaigns): no cause changes, these two and 7 real defects named ambiguous instead of confident. Both
     named confidently on main before (bb56e91). Session 29 (core.discover._beyond_one_place): 1083's bump reaches
     no other touch where it would move it detectably (0.25 sigma expected beyond its place), and the reason says
-    the design cannot tell the two apart; 1015's is seen beyond its place (a second chip under it), the words as
-    before."""
+    the design cannot tell the two apart; 1015's was seen beyond its place (a second chip under it), the words "a
+    gross error at that one place (outlier) could do as much"; since session 34 1015 reads `outlier` (below)."""
     rep = _blind_report(gen, "outlier", seed)
     f = next(f for f in rep["findings"] if f["cause"] == "local_scale_defect")
     ev = f["evidence"]
@@ -552,6 +568,23 @@ def test_a_bump_seen_at_one_place_where_it_reaches_is_ambiguous_with_outlier(gen
     assert "outlier" in ev["ambiguous_with"]
     assert words in ev["confidence_reason"]
     assert ev["support_units_reached"] < MIN_SUPPORT <= ev["support_units"]
+
+
+def test_two_chips_under_a_bump_half_the_spacing_wide_are_outliers():
+    """gen_b outlier 1015 (tuning): two chips under one bump (each seen beyond the other's place) read
+    `local_scale_defect?` (ambiguous with `outlier`, then `unexplained` and `outlier`; extended workpiece 1.60 um, U95 2.56) until the
+    scan's narrowest half-width came down to half the positions' mean spacing (core.causes.DEFECT_MIN_WIDTH_GAPS,
+    session 34): now `outlier`, confidently, the generator's own rows set aside, no bump named, the extended
+    workpiece 0.26 um (U95 0.51). (It was the tuning campaign of the words "a gross error at that one place
+    (outlier) could do as much", which no campaign of this module reaches now.)"""
+    from scenarios.blind import gen_b
+
+    _, truth = gen_b.generate("outlier", 1015)
+    rep = _blind_report("gen_b", "outlier", 1015)
+    assert rep["cause"] == "outlier", [f["cause"] for f in rep["findings"]]
+    assert rep["findings"][0]["evidence"]["confidence"] == "named", rep["findings"][0]["evidence"]
+    assert "local_scale_defect" not in [f["cause"] for f in rep["findings"]]
+    assert rep["outlier_rows"] == sorted(int(r) for r in truth.outlier_rows), (rep["outlier_rows"], truth.outlier_rows)
 
 
 def test_a_named_cause_whose_size_is_not_determined_is_ambiguous():

@@ -1458,7 +1458,10 @@ def test_cause_adopted_beside_a_dropped_cause_is_judged_again(monkeypatch, effec
     `unexplained`); it is off here so that the judged-again dependant this test examines is still named. So is
     session 25's ENTRANT_FORM_HELD_OUT: on thermal_bending 1016 another wall's change (part_change's other form)
     takes round one from periodic_axis_error on held-out data, and the path this test examines (a cause dropped
-    after a dependant was adopted beside it) is not taken (the outcome is the same, `unexplained`)."""
+    after a dependant was adopted beside it) is not taken (the outcome is the same, `unexplained`). So is session
+    34's floor of the bump's half-width (core.causes.DEFECT_MIN_WIDTH_GAPS, 2.0 here as before): with the narrower
+    bumps thermal_bending 1016 no longer takes that path either."""
+    import core.causes as C
     import core.discover as D
     from core.touches import from_log
     from scenarios.blind import gen_a
@@ -1466,6 +1469,7 @@ def test_cause_adopted_beside_a_dropped_cause_is_judged_again(monkeypatch, effec
     monkeypatch.setattr(D, "HELD_OUT_FALLBACK", fallback)
     monkeypatch.setattr(D, "PART_CHANGE_CONFINED", False)
     monkeypatch.setattr(D, "ENTRANT_FORM_HELD_OUT", False)
+    monkeypatch.setattr(C, "DEFECT_MIN_WIDTH_GAPS", 2.0)
     log, _ = gen_a.generate(effect, seed)
     t = from_log(log)
     seen = {}
