@@ -84,7 +84,7 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     """
     from core.atomic import write_json_atomic
     from core.exceptions import ConfigError
-    from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning,
+    from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning, printed_step,
                                   write_positioning_log)
 
     if add_to and not comp_file:
@@ -104,9 +104,13 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["input_warnings"] = list(log.warnings)   # the reader's own (also among "warnings", with the test's)
     if rep.get("cycle_kind") == "pilgrim":
         rep["cycle_note"] = PILGRIM_NOTE
+    rep["printed_step"], w = printed_step(log, result)   # the readings' rounding (review34), beside the figures
+    if w:
+        result = dataclasses.replace(result, warnings=tuple(result.warnings) + (w,))
+        rep["warnings"] = list(result.warnings)
     budget = None
     if uncertainty is not None:
-        budget = figure_uncertainty(result, uncertainty)
+        budget = figure_uncertainty(result, uncertainty, step=log.text_steps.get("measured"))
         rep["uncertainty"] = budget.to_report()
         w = (budget.temperature or {}).get("warning")
         if w:   # (the readings are not corrected to 20 C here: said where the figures are, review31 F10)

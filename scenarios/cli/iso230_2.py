@@ -87,6 +87,12 @@ def run(args) -> int:
           + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else ""))
     if rep.get("cycle_note"):
         print(f"  note: {rep['cycle_note']}")
+    st = rep.get("printed_step") or {}
+    if st.get(f"u_reading_{sym}", 0.0) >= 0.0005:   # shown where it reaches the figures' printed digits
+        unit = "mm" if sym == "um" else "deg"
+        print(f"  readings printed to {st[f'step_{unit}']:g} {unit}: rounding u {st[f'u_reading_{sym}']:.3f} {sym} a "
+              f"reading, R up to {st[f'u_R_{sym}']:.3f}, A {st[f'u_A_{sym}']:.3f}, B E M {st[f'u_E_{sym}']:.3f} "
+              f"{sym} (1 sigma{', in U cond' if rep.get('uncertainty') else ''})")
     U = rep.get("uncertainty") or {}
     if U:
         print("  (U cond: the measuring conditions' expanded uncertainty, k = 2; sampling: 2 x std of the figure "
