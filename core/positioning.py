@@ -76,7 +76,7 @@ from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
 from .probelog import (COMMENT_AFTER_HEADER, OK_CELLS, T_MAX_S, TEMP_RANGE_C, _comment_row, _num, add_meta,
                        csv_lines, is_number, last_row_check, ok_statuses, step_back, value_range)
-from .probelog import NUMBER_FORMAT_KEY, most_decimals, parse_number_format
+from .probelog import NUMBER_FORMAT_KEY, most_decimals, number_format_value, parse_number_format, step_decimals
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -683,6 +683,11 @@ def format_positioning_log(log: PositioningLog) -> str:
     meta["format"] = FORMAT
     meta.setdefault("unit", log.unit)
     meta = {"format": meta.pop("format"), **meta}
+    fixed = _written_decimals(log)
+    if fixed is None:
+        meta.pop(NUMBER_FORMAT_KEY, None)
+    else:
+        meta[NUMBER_FORMAT_KEY] = number_format_value(fixed)
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")
     u = log.unit
@@ -704,10 +709,34 @@ def format_positioning_log(log: PositioningLog) -> str:
                 row.append(str(int(v[r])))
             elif name == "direction":
                 row.append("+" if v[r] > 0 else "-")
+            elif name in (fixed or {}) and not math.isnan(v[r]):
+                row.append(f"{float(v[r]):.{fixed[name]}f}")
             else:
                 row.append(v[r] if text else _fmt(v[r]))
         w.writerow(row)
     return buf.getvalue()
+
+
+def _written_decimals(log: PositioningLog) -> dict | None:
+    """The columns the writer prints to fixed decimals (name -> K), the others exact (shortest round-trip),
+    as the probe log's writer declares them (``number_format``, :data:`core.probelog.NUMBER_FORMAT_KEY`): a
+    target or measured column read with a step ``10^-K`` (:attr:`PositioningLog.text_steps`) is written to K
+    decimals, so a read -> write -> read keeps its step (``405.770`` would otherwise come back as ``405.77``,
+    a 0.01 mm step); a log built in memory declares its numbers exact. None (no line: the digits say the step,
+    as before session 34) when a known step does not hold its column's values (a table's measured column is
+    target + deviation: a target finer than the deviation's step)."""
+    u = log.unit
+    fixed = {}
+    for key, name, v in (("target", f"target_{u}", log.target), ("measured", f"measured_{u}", log.measured)):
+        d = step_decimals(log.text_steps.get(key))
+        if d is None:
+            continue
+        x = np.asarray(v, float)
+        x = x[np.isfinite(x)]
+        if x.size and np.max(np.abs(np.round(x, d) - x)) > 1e-6 * 10.0 ** -d:
+            return None
+        fixed[name] = d
+    return fixed
 
 
 def write_positioning_log(path: str | os.PathLike, log: PositioningLog, *, special: bool = False) -> Path:
@@ -768,6 +797,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
     scalars: dict[str, tuple[str, int]] = {}
     tgt: dict[int, tuple[float, int]] = {}
     ref: dict[str, dict[tuple[int, int], tuple[float, int]]] = {"FWD": {}, "BWD": {}}
+    texts: dict[str, list[str]] = {"target": [], "measured": []}   # the numbers as printed: their step
     extra_meta: dict[str, str] = {}
 
     def num(v: str, ln: int, what: str) -> float:
@@ -795,6 +825,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
             if i in tgt:
                 raise PositioningLogError(f"{src}: line {ln}: TGT_DATA[{i}] given twice (first on line {tgt[i][1]})")
             tgt[i] = (num(val, ln, f"TGT_DATA[{i}]"), ln)
+            texts["target"].append(val)
         elif key in ("REF_DATA_FWD", "REF_DATA_BWD"):
             d = key[-3:]
             if idx is None:
@@ -804,6 +835,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 raise PositioningLogError(
                     f"{src}: line {ln}: {key}[{ij[0]},{ij[1]}] given twice (first on line {ref[d][ij][1]})")
             ref[d][ij] = (num(val, ln, f"{key}[{ij[0]},{ij[1]}]"), ln)
+            texts["measured"].append(val)
         elif idx is None and key in ("UNIT", "CYCLES", "POSITIONS"):
             if key in scalars:
                 raise PositioningLogError(f"{src}: line {ln}: {key} given twice (first on line {scalars[key][1]})")
@@ -844,7 +876,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 if (i, j) not in ref[d]:
                     raise PositioningLogError(f"{src}: REF_DATA_{d}[{i},{j}] missing (POSITIONS={m}, CYCLES={n})")
     order = sorted(range(1, m + 1), key=lambda i: tgt[i][0])
-    rows_t, rows_c, rows_d, rows_m = [], [], [], []
+    rows_t, rows_c, rows_d, rows_m, rows_ln = [], [], [], [], []
     for j in range(1, n + 1):
         for d, seq in (("FWD", order), ("BWD", order[::-1])):
             for i in seq:
@@ -852,10 +884,14 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 rows_c.append(j)
                 rows_d.append(1 if d == "FWD" else -1)
                 rows_m.append(ref[d][(i, j)][0] * scale)
+                rows_ln.append(ref[d][(i, j)][1])
     meta = {"axis": "", "instrument": "reference encoder (ecmc REF_PV)", "cycle_kind": "linear",
             "imported_from": "ecmc .dat", "row_order": "ecmc linear cycle (assumed; the file has no clock)"}
     meta.update(extra_meta)
-    return make_positioning_log(rows_t, rows_c, rows_d, rows_m, meta=meta, unit=unit, source=src)
+    log = make_positioning_log(rows_t, rows_c, rows_d, rows_m, meta=meta, unit=unit, source=src, lines=rows_ln)
+    steps = _column_steps({}, (), {k: (k, v) for k, v in texts.items()}, src,
+                          scale={"target": scale, "measured": scale})
+    return replace(log, text_steps=steps)
 
 
 _TABLE_NAMES = {
@@ -939,10 +975,13 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             key = name.strip().lower()
             canon = next((c for c, names in _TABLE_NAMES.items() if key in names), None)
             if canon is None:   # refused, not dropped: a status column dropped let invalid readings in
+                cased = next((k for k in meta if k.lower() == "format" and k != "format"), None)
                 raise PositioningLogError(
                     f"{src}: line {rows[0][0]}: column {name!r} is not a table column (target, cycle, "
                     f"direction, measured or deviation_um): delete it, or, for a positioning log, "
-                    f"add the line '# format: {FORMAT}'")
+                    + (f"write line {meta_line[cased]}'s key in lower case, '# format: {FORMAT}' (metadata keys "
+                       f"are case-sensitive: '# {cased}:' is another key)" if cased is not None else
+                       f"add the line '# format: {FORMAT}'"))
             if canon in lookup:
                 raise PositioningLogError(f"{src}: line {rows[0][0]}: two columns mean {canon!r}")
             lookup[canon] = j
@@ -1096,6 +1135,38 @@ class PositioningTest:
         return np.sum(~np.isnan(self.dev_down), axis=1)
 
 
+def row_where(log: PositioningLog, r: int) -> str:
+    """``FILE: row r (line l)``: where a reading is, as the reader's own refusals say it (docs/formats.md: each
+    names the 0-based data row and the file line; review34: the evaluation's named the row only). The line is
+    left out where the log has none (built in memory, an ecmc ``.dat``)."""
+    ln = None if log.lines is None or r >= len(log.lines) else int(log.lines[r])
+    return f"{log.source}: row {r}" + (f" (line {ln})" if ln is not None else "")
+
+
+def skipped_readings(log: PositioningLog) -> dict:
+    """How many readings the log holds and how many the evaluation leaves out for their ``status``
+    (review34: the sample's ``beam interrupted`` row was skipped without a word): ``readings``, ``valid``,
+    ``skipped`` and ``skipped_by_status`` (status -> count, in order of first appearance)."""
+    ok = log.ok
+    by: dict[str, int] = {}
+    if log.status is not None:
+        for st in log.status[~ok]:
+            by[str(st)] = by.get(str(st), 0) + 1
+    return {"readings": log.n, "valid": int(ok.sum()), "skipped": int(log.n - ok.sum()), "skipped_by_status": by}
+
+
+def skipped_said(counts: Mapping) -> str:
+    """``91 readings, 1 skipped for its status ('beam interrupted')``, or '' when none was skipped."""
+    k = int(counts.get("skipped", 0))
+    if not k:
+        return ""
+    by = counts.get("skipped_by_status") or {}
+    shown = ", ".join(f"{st!r}" + (f" x{c}" if c > 1 else "") for st, c in list(by.items())[:4])
+    more = f", {len(by) - 4} more statuses" if len(by) > 4 else ""
+    return (f"{counted(int(counts['readings']), 'reading')}, {k} skipped for "
+            f"{'its' if k == 1 else 'their'} status ({shown}{more})")
+
+
 def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, targets: np.ndarray) -> list:
     """Refuse a valid reading whose deviation is beyond :data:`DEVIATION_WARN` and at least half the spacing
     of its target's neighbours (nearer another target than its own: a unit or typing slip, not an error of
@@ -1118,14 +1189,14 @@ def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, 
         k = int(np.argmax(refuse))
         r = int(rows[k])
         raise PositioningLogError(
-            f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} "
+            f"{row_where(log, r)}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} "
             f"is {dev[k]:.6g} {u} off it, nearer another target than its own (half the targets' spacing "
             f"there: {half[k]:.6g} {u}): no positioning error, a unit or typing slip (deviations in the "
             f"measured column? the wrong unit?)" + (f"; {int(refuse.sum())} such readings" if refuse.sum() > 1
                                                      else ""))
     k = int(np.argmax(big))
     r = int(rows[k])
-    return [f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} is "
+    return [f"{row_where(log, r)}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} is "
             f"{dev[k]:.6g} {u} off it, beyond {said}, tens of times a machine's positioning error (a unit or "
             f"typing slip?); {counted(int(big.sum()), 'reading')} so far off, every figure includes them"]
 

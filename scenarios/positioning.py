@@ -85,7 +85,7 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     from core.atomic import write_json_atomic
     from core.exceptions import ConfigError
     from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning, printed_step,
-                                  write_positioning_log)
+                                  skipped_readings, write_positioning_log)
 
     if add_to and not comp_file:
         raise ConfigError("--add-to: give --comp-file too (the file to write: the old table plus this test's residual)")
@@ -102,6 +102,7 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["machine"] = log.meta.get("machine", "")
     rep["instrument"] = log.meta.get("instrument", "")
     rep["input_warnings"] = list(log.warnings)   # the reader's own (also among "warnings", with the test's)
+    rep["readings"] = skipped_readings(log)      # read, valid, left out for their status (review34)
     if rep.get("cycle_kind") == "pilgrim":
         rep["cycle_note"] = PILGRIM_NOTE
     rep["printed_step"], w = printed_step(log, result)   # the readings' rounding (review34), beside the figures
@@ -214,7 +215,10 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                   + "".join(w[:1].upper() + w[1:] for w in [(budget.temperature or {}).get("what", "")])
                   + (f" (uncorrected, the expansion over the travel would be "
                      f"{budget.temperature['expansion_if_uncorrected_um']:+.3f} µm)."
-                     if budget.temperature else "")),
+                     if budget.temperature else "")
+                  + (f" The readings' printed step (rounding, u = step / sqrt 12 a reading) is a contribution of "
+                     f"its own, by figure: E, M, B {budget.step_u['E']:.4g}, A {budget.step_u['A']:.4g}, "
+                     f"R {budget.step_u['R']:.4g} µm (JSON printed_step)." if budget.step_u else "")),
             tables=[Table(["source", "u on E, M, A / µm", "u on B, R / µm"],
                           [[s, a, b] for s, (a, b) in budget.contributions.items()])]))
     b = rep["baseline"]

@@ -99,3 +99,39 @@ def test_table_deviation_um_step_in_mm():
     assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12)   # 0.1 um printed in um -> 1e-4 mm
     assert log.text_steps["target"] == 1.0
     assert np.all(log.lines == np.arange(2, 20))
+
+
+def test_the_writer_keeps_the_step_and_declares_memory_logs_exact():
+    """A log read with a 0.01 mm step written and read back keeps it (repr would print 405.770 as 405.77, and a
+    column whose values all end in 0 would come back coarser); a log built in memory is declared exact (its
+    shortest round-trip digits are not a print step)."""
+    from core.positioning import format_positioning_log, make_positioning_log
+
+    log = parse_positioning_log(_rounded(2))
+    text = format_positioning_log(log)
+    assert "# number_format: shortest round-trip; decimals target_mm=3, measured_mm=2\n" in text
+    back = parse_positioning_log(text)
+    assert back.text_steps == log.text_steps and format_positioning_log(back) == text
+    ok = log.ok
+    assert np.array_equal(back.measured[ok], log.measured[ok]) and np.array_equal(back.target, log.target)
+    # every measured value a whole 0.1 mm: the digits alone would read a 0.1 mm step; the declaration keeps 0.01
+    t = [0.0, 100.0] * 4
+    mem = make_positioning_log(t, [1, 1, 1, 1, 2, 2, 2, 2], "++--++--", [0.1, 100.2, 0.3, 100.1] * 2)
+    assert mem.text_steps == {}
+    back = parse_positioning_log(format_positioning_log(mem))
+    assert back.text_steps == {"target": 0.0, "measured": 0.0}
+    stepped = parse_positioning_log(format_positioning_log(
+        parse_positioning_log(format_positioning_log(mem).replace(
+            "# number_format: shortest round-trip", "# number_format: shortest round-trip; decimals measured_mm=2"))))
+    assert stepped.text_steps["measured"] == pytest.approx(0.01, rel=1e-12)
+
+
+def test_an_ecmc_file_records_its_step():
+    from core.positioning import parse_ecmc_dat
+
+    text = ("UNIT=mm\nTGT_DATA[1]=0\nTGT_DATA[2]=10\nREF_DATA_FWD[1,1]=0.0010\nREF_DATA_FWD[2,1]=10.0020\n"
+            "REF_DATA_FWD[1,2]=0.0010\nREF_DATA_FWD[2,2]=10.0020\nREF_DATA_BWD[1,1]=-0.0005\n"
+            "REF_DATA_BWD[2,1]=10.0000\nREF_DATA_BWD[1,2]=-0.0005\nREF_DATA_BWD[2,2]=10.0000\n")
+    log = parse_ecmc_dat(text, "e.dat")
+    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12) and log.text_steps["target"] == 1.0
+    assert list(log.lines[:2]) == [4, 5]   # cycle 1 FWD at targets 0, 10: REF_DATA_FWD[1,1], [2,1]
