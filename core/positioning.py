@@ -76,6 +76,7 @@ from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
 from .probelog import (COMMENT_AFTER_HEADER, OK_CELLS, T_MAX_S, TEMP_RANGE_C, _comment_row, _num, add_meta,
                        csv_lines, is_number, last_row_check, ok_statuses, step_back, value_range)
+from .probelog import NUMBER_FORMAT_KEY, most_decimals, number_format_value, parse_number_format, step_decimals
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -161,6 +162,16 @@ class PositioningLog:
         What reading found doubtful but not wrong (one line each): a last
         row without an end of line that may be cut short
         (:func:`core.probelog.last_row_check`). :func:`arrange` passes them on.
+    lines : (N,) int or None
+        The file line of each row (for messages naming it, as the reader's own do); None when the log was not
+        read from a file with lines (built in memory, an ecmc ``.dat``).
+    text_steps : dict[str, float]
+        The step the target and measured columns were printed to, file unit (session 34, review34: a log printed
+        to 0.01 mm gave R 17.9 um for 5.4 at full precision without a word): ``10^-k`` for the most decimals
+        ``k`` written in the column (``405.77``: 0.01), 0 where the metadata ``number_format`` declares the
+        numbers exact (vmt's words, :data:`core.probelog.NUMBER_FORMAT_EXACT`) and ``10^-K`` for a column it
+        declares printed to ``K`` decimals. Keyed ``target`` and ``measured``; empty when unknown (built in
+        memory, an ecmc ``.dat``). :func:`printed_step` turns it into the rounding's uncertainty.
     """
 
     meta: dict[str, str]
@@ -173,6 +184,8 @@ class PositioningLog:
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     source: str = "<memory>"
     warnings: tuple = ()
+    lines: np.ndarray | None = None
+    text_steps: dict = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -292,8 +305,9 @@ def make_positioning_log(target, cycle, direction, measured, *, t_s=None, status
     log = PositioningLog(meta=m, target=tgt, cycle=cyc_f.astype(np.int64),
                          direction=_direction_array(list(direction), source),
                          measured=np.asarray(measured, dtype=float).reshape(-1).copy(),
-                         t_s=ts, status=st, extra=ex, source=source)
-    _validate(log, None if lines is None or len(lines) != n else list(lines))
+                         t_s=ts, status=st, extra=ex, source=source,
+                         lines=None if lines is None or len(lines) != n else np.asarray(lines, dtype=np.int64))
+    _validate(log, None if log.lines is None else list(log.lines))
     return log
 
 
@@ -513,10 +527,43 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
         if h in (tname, mname, "cycle", "direction", "status", "t_s"):
             continue
         extra[h] = numbers(h, allow_empty=True) if _is_temp(h) else np.array(col[h], dtype=object)
+    steps = _column_steps(meta, header, {"target": (tname, col[tname]),
+                                         "measured": (mname, [c for c, o in zip(col[mname], ok) if o])}, src)
     log = PositioningLog(meta=meta, target=target, cycle=cyc.astype(np.int64), direction=direction,
-                         measured=measured, t_s=t_s, status=status, extra=extra, source=src, warnings=warnings)
+                         measured=measured, t_s=t_s, status=status, extra=extra, source=src, warnings=warnings,
+                         lines=np.asarray(line_of_row, dtype=np.int64), text_steps=steps)
     _validate(log, line_of_row)
     return log
+
+
+def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str, list]], src: str,
+                  scale: Mapping[str, float] | None = None) -> dict:
+    """:attr:`PositioningLog.text_steps` of the columns ``cells`` (key -> (column name, its cells' text)): the
+    step of each column's most decimals, or what the metadata ``number_format`` declares (the probe log's line,
+    :func:`core.probelog.parse_number_format`: vmt's words say the numbers are exact, ``decimals NAME=K`` a
+    column printed to K decimals). ``scale``: key -> factor from the column's unit to the file unit (a table's
+    ``deviation_um``: 1e-3)."""
+    declared = meta.get(NUMBER_FORMAT_KEY)
+    exact, fixed = False, {}
+    if declared is not None:
+        from .exceptions import ProbeLogError
+
+        try:
+            exact, fixed = parse_number_format(declared, header, src)
+        except ProbeLogError as e:
+            raise PositioningLogError(str(e)) from None
+    out = {}
+    for key, (name, text) in cells.items():
+        k = (scale or {}).get(key, 1.0)
+        if name in fixed:
+            out[key] = k * 10.0 ** -fixed[name]
+        elif exact:
+            out[key] = 0.0
+        else:
+            d = most_decimals(text)
+            if d is not None:
+                out[key] = k * 10.0 ** -d
+    return out
 
 
 #: Axis letters of ISO 841: the linear axes (a positioning log of one in mm) and the rotary axes (in deg).
@@ -636,6 +683,11 @@ def format_positioning_log(log: PositioningLog) -> str:
     meta["format"] = FORMAT
     meta.setdefault("unit", log.unit)
     meta = {"format": meta.pop("format"), **meta}
+    fixed = _written_decimals(log)
+    if fixed is None:
+        meta.pop(NUMBER_FORMAT_KEY, None)
+    else:
+        meta[NUMBER_FORMAT_KEY] = number_format_value(fixed)
     for k, v in meta.items():
         buf.write(f"# {k}: {' '.join(str(v).split())}\n")
     u = log.unit
@@ -657,10 +709,34 @@ def format_positioning_log(log: PositioningLog) -> str:
                 row.append(str(int(v[r])))
             elif name == "direction":
                 row.append("+" if v[r] > 0 else "-")
+            elif name in (fixed or {}) and not math.isnan(v[r]):
+                row.append(f"{float(v[r]):.{fixed[name]}f}")
             else:
                 row.append(v[r] if text else _fmt(v[r]))
         w.writerow(row)
     return buf.getvalue()
+
+
+def _written_decimals(log: PositioningLog) -> dict | None:
+    """The columns the writer prints to fixed decimals (name -> K), the others exact (shortest round-trip),
+    as the probe log's writer declares them (``number_format``, :data:`core.probelog.NUMBER_FORMAT_KEY`): a
+    target or measured column read with a step ``10^-K`` (:attr:`PositioningLog.text_steps`) is written to K
+    decimals, so a read -> write -> read keeps its step (``405.770`` would otherwise come back as ``405.77``,
+    a 0.01 mm step); a log built in memory declares its numbers exact. None (no line: the digits say the step,
+    as before session 34) when a known step does not hold its column's values (a table's measured column is
+    target + deviation: a target finer than the deviation's step)."""
+    u = log.unit
+    fixed = {}
+    for key, name, v in (("target", f"target_{u}", log.target), ("measured", f"measured_{u}", log.measured)):
+        d = step_decimals(log.text_steps.get(key))
+        if d is None:
+            continue
+        x = np.asarray(v, float)
+        x = x[np.isfinite(x)]
+        if x.size and np.max(np.abs(np.round(x, d) - x)) > 1e-6 * 10.0 ** -d:
+            return None
+        fixed[name] = d
+    return fixed
 
 
 def write_positioning_log(path: str | os.PathLike, log: PositioningLog, *, special: bool = False) -> Path:
@@ -721,6 +797,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
     scalars: dict[str, tuple[str, int]] = {}
     tgt: dict[int, tuple[float, int]] = {}
     ref: dict[str, dict[tuple[int, int], tuple[float, int]]] = {"FWD": {}, "BWD": {}}
+    texts: dict[str, list[str]] = {"target": [], "measured": []}   # the numbers as printed: their step
     extra_meta: dict[str, str] = {}
 
     def num(v: str, ln: int, what: str) -> float:
@@ -748,6 +825,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
             if i in tgt:
                 raise PositioningLogError(f"{src}: line {ln}: TGT_DATA[{i}] given twice (first on line {tgt[i][1]})")
             tgt[i] = (num(val, ln, f"TGT_DATA[{i}]"), ln)
+            texts["target"].append(val)
         elif key in ("REF_DATA_FWD", "REF_DATA_BWD"):
             d = key[-3:]
             if idx is None:
@@ -757,6 +835,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 raise PositioningLogError(
                     f"{src}: line {ln}: {key}[{ij[0]},{ij[1]}] given twice (first on line {ref[d][ij][1]})")
             ref[d][ij] = (num(val, ln, f"{key}[{ij[0]},{ij[1]}]"), ln)
+            texts["measured"].append(val)
         elif idx is None and key in ("UNIT", "CYCLES", "POSITIONS"):
             if key in scalars:
                 raise PositioningLogError(f"{src}: line {ln}: {key} given twice (first on line {scalars[key][1]})")
@@ -797,7 +876,7 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 if (i, j) not in ref[d]:
                     raise PositioningLogError(f"{src}: REF_DATA_{d}[{i},{j}] missing (POSITIONS={m}, CYCLES={n})")
     order = sorted(range(1, m + 1), key=lambda i: tgt[i][0])
-    rows_t, rows_c, rows_d, rows_m = [], [], [], []
+    rows_t, rows_c, rows_d, rows_m, rows_ln = [], [], [], [], []
     for j in range(1, n + 1):
         for d, seq in (("FWD", order), ("BWD", order[::-1])):
             for i in seq:
@@ -805,10 +884,14 @@ def parse_ecmc_dat(text: str, source: str = "<memory>") -> PositioningLog:
                 rows_c.append(j)
                 rows_d.append(1 if d == "FWD" else -1)
                 rows_m.append(ref[d][(i, j)][0] * scale)
+                rows_ln.append(ref[d][(i, j)][1])
     meta = {"axis": "", "instrument": "reference encoder (ecmc REF_PV)", "cycle_kind": "linear",
             "imported_from": "ecmc .dat", "row_order": "ecmc linear cycle (assumed; the file has no clock)"}
     meta.update(extra_meta)
-    return make_positioning_log(rows_t, rows_c, rows_d, rows_m, meta=meta, unit=unit, source=src)
+    log = make_positioning_log(rows_t, rows_c, rows_d, rows_m, meta=meta, unit=unit, source=src, lines=rows_ln)
+    steps = _column_steps({}, (), {k: (k, v) for k, v in texts.items()}, src,
+                          scale={"target": scale, "measured": scale})
+    return replace(log, text_steps=steps)
 
 
 _TABLE_NAMES = {
@@ -892,10 +975,13 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
             key = name.strip().lower()
             canon = next((c for c, names in _TABLE_NAMES.items() if key in names), None)
             if canon is None:   # refused, not dropped: a status column dropped let invalid readings in
+                cased = next((k for k in meta if k.lower() == "format" and k != "format"), None)
                 raise PositioningLogError(
                     f"{src}: line {rows[0][0]}: column {name!r} is not a table column (target, cycle, "
                     f"direction, measured or deviation_um): delete it, or, for a positioning log, "
-                    f"add the line '# format: {FORMAT}'")
+                    + (f"write line {meta_line[cased]}'s key in lower case, '# format: {FORMAT}' (metadata keys "
+                       f"are case-sensitive: '# {cased}:' is another key)" if cased is not None else
+                       f"add the line '# format: {FORMAT}'"))
             if canon in lookup:
                 raise PositioningLogError(f"{src}: line {rows[0][0]}: two columns mean {canon!r}")
             lookup[canon] = j
@@ -932,6 +1018,10 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
         width = 4
         unit = given or "mm"
     tg, cy, di, me, lns = [], [], [], [], []
+    mkey = "measured" if "measured" in cols else "deviation_um"
+    steps = _column_steps({}, (), {"target": ("target", [c[cols["target"]] for _, c in rows if len(c) == width]),
+                                   "measured": (mkey, [c[cols[mkey]] for _, c in rows if len(c) == width])},
+                          src, scale={"measured": 1e-3 if mkey == "deviation_um" else 1.0})
     for ln, cells in rows:
         if len(cells) != width:
             raise PositioningLogError(f"{src}: line {ln}: {counted(len(cells), 'field')}, expected {width}")
@@ -956,7 +1046,7 @@ def parse_table(text: str, source: str = "<memory>", unit: str | None = None) ->
     meta.pop("format", None)
     meta.pop("unit", None)
     log = make_positioning_log(tg, cy, di, me, meta=meta, unit=unit, source=src, lines=lns)
-    return replace(log, warnings=log.warnings + tuple(meta_warnings)) if meta_warnings else log
+    return replace(log, warnings=log.warnings + tuple(meta_warnings), text_steps=steps)
 
 
 def load_positioning(path: str | os.PathLike, kind: str = "auto", unit: str | None = None) -> PositioningLog:
@@ -1045,6 +1135,38 @@ class PositioningTest:
         return np.sum(~np.isnan(self.dev_down), axis=1)
 
 
+def row_where(log: PositioningLog, r: int) -> str:
+    """``FILE: row r (line l)``: where a reading is, as the reader's own refusals say it (docs/formats.md: each
+    names the 0-based data row and the file line; review34: the evaluation's named the row only). The line is
+    left out where the log has none (built in memory, an ecmc ``.dat``)."""
+    ln = None if log.lines is None or r >= len(log.lines) else int(log.lines[r])
+    return f"{log.source}: row {r}" + (f" (line {ln})" if ln is not None else "")
+
+
+def skipped_readings(log: PositioningLog) -> dict:
+    """How many readings the log holds and how many the evaluation leaves out for their ``status``
+    (review34: the sample's ``beam interrupted`` row was skipped without a word): ``readings``, ``valid``,
+    ``skipped`` and ``skipped_by_status`` (status -> count, in order of first appearance)."""
+    ok = log.ok
+    by: dict[str, int] = {}
+    if log.status is not None:
+        for st in log.status[~ok]:
+            by[str(st)] = by.get(str(st), 0) + 1
+    return {"readings": log.n, "valid": int(ok.sum()), "skipped": int(log.n - ok.sum()), "skipped_by_status": by}
+
+
+def skipped_said(counts: Mapping) -> str:
+    """``91 readings, 1 skipped for its status ('beam interrupted')``, or '' when none was skipped."""
+    k = int(counts.get("skipped", 0))
+    if not k:
+        return ""
+    by = counts.get("skipped_by_status") or {}
+    shown = ", ".join(f"{st!r}" + (f" x{c}" if c > 1 else "") for st, c in list(by.items())[:4])
+    more = f", {len(by) - 4} more statuses" if len(by) > 4 else ""
+    return (f"{counted(int(counts['readings']), 'reading')}, {k} skipped for "
+            f"{'its' if k == 1 else 'their'} status ({shown}{more})")
+
+
 def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, targets: np.ndarray) -> list:
     """Refuse a valid reading whose deviation is beyond :data:`DEVIATION_WARN` and at least half the spacing
     of its target's neighbours (nearer another target than its own: a unit or typing slip, not an error of
@@ -1067,14 +1189,14 @@ def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, 
         k = int(np.argmax(refuse))
         r = int(rows[k])
         raise PositioningLogError(
-            f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} "
+            f"{row_where(log, r)}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} "
             f"is {dev[k]:.6g} {u} off it, nearer another target than its own (half the targets' spacing "
             f"there: {half[k]:.6g} {u}): no positioning error, a unit or typing slip (deviations in the "
             f"measured column? the wrong unit?)" + (f"; {int(refuse.sum())} such readings" if refuse.sum() > 1
                                                      else ""))
     k = int(np.argmax(big))
     r = int(rows[k])
-    return [f"{src}: row {r}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} is "
+    return [f"{row_where(log, r)}: measured {_num(log.measured[r])} {u} at target {_num(log.target[r])} {u} is "
             f"{dev[k]:.6g} {u} off it, beyond {said}, tens of times a machine's positioning error (a unit or "
             f"typing slip?); {counted(int(big.sum()), 'reading')} so far off, every figure includes them"]
 
@@ -1527,6 +1649,7 @@ class UncertaintyBudget:
     k: float = 2.0
     temperature: dict | None = None
     U_sampling: dict | None = None
+    step_u: dict | None = None
 
     def to_report(self) -> dict:
         return {"k": self.k, "travel_mm": self.travel_mm,
@@ -1536,7 +1659,9 @@ class UncertaintyBudget:
                            "ISO 230-2's figures are statistics of the readings taken, and a repeat of the test "
                            "moves them by this much"),
                 "contributions": [{"source": s, "u_range_um": a, "u_difference_um": b}
-                                  for s, (a, b) in self.contributions.items()],
+                                  for s, (a, b) in self.contributions.items()]
+                + ([{"source": STEP_SOURCE, **{f"u_{f}_um": v for f, v in self.step_u.items()}}]
+                   if self.step_u else []),
                 **{f"U_{f}_um": v for f, v in self.U.items()},
                 **({f"U_sampling_{f}_um": v for f, v in self.U_sampling.items()} if self.U_sampling else {}),
                 **({"temperature": dict(self.temperature)} if self.temperature is not None else {})}
@@ -1585,6 +1710,66 @@ def sampling_uncertainty(result: "Iso2302Result", runs: int = SAMPLING_RUNS, see
     return {f: 2.0 * float(np.std(v, ddof=1)) * kf for f, v in vals.items()}
 
 
+#: How the rounding of readings printed to a step q enters each figure (session 34, review34: the sample printed to
+#: 0.01 mm gave B 8.0, R 17.9, E 18.0, A 34.9 um against 3.3, 5.4, 16.7, 18.6 at full precision, without a word).
+#: Each reading's rounding error is uniform of width q: u_q = q / sqrt 12 (GUM 4.3.7). A machine that repeats to
+#: better than q prints its n readings of one target alike, so the errors do not average out over the cycles: a
+#: mean carries u_q, whatever n, and a difference of two means sqrt 2 u_q (B_i, hence B and B̄; E and M, the
+#: range of the means). An s carries about u_q (the rounding adds q²/12 to a spread reading's variance, Sheppard,
+#: and a reading finer than q has an s of 0 to about q/2), so 2 s carries 2 u_q: R↑ = 4 s carries 4 u_q, and R
+#: (at most 2 s↑ + 2 s↓ + |B_i| or a 4 s) 4 u_q; A↑ (two means and two 2 s) sqrt(1 + 1 + 4 + 4) u_q. The factors
+#: multiply u_q; the figures themselves are the standard's, from the readings as printed.
+STEP_SENSITIVITY = {"B": math.sqrt(2.0), "B_mean": math.sqrt(2.0), "R_up": 4.0, "R_down": 4.0, "R": 4.0,
+                    "E_up": math.sqrt(2.0), "E_down": math.sqrt(2.0), "E": math.sqrt(2.0), "M": math.sqrt(2.0),
+                    "A_up": math.sqrt(10.0), "A_down": math.sqrt(10.0), "A": math.sqrt(10.0)}
+
+#: :func:`printed_step` warns when the measured column's step exceeds this many times the median s of the test
+#: (over targets and directions). At q = s the rounding adds q²/12 to s² (s up by 4 %) and the rounded readings
+#: still behave as continuous ones (Sheppard's correction holds up to q of about 2 s); beyond, five readings of a
+#: target take one to three printed values, s is mostly the rounding's, and R and A describe the print, not the
+#: machine (the sample at 0.01 mm: q 10 um against s 0.19-0.85 um, R 17.9 for 5.4).
+STEP_COARSE_RATIO = 1.0
+
+
+def printed_step(log: PositioningLog, result: "Iso2302Result") -> tuple[dict, str | None]:
+    """What the printed step of ``log``'s readings does to ``result``'s figures: ``(report, warning)``.
+
+    ``report`` (the JSON's ``printed_step``): ``column`` (the measured column), ``step_<unit>`` and
+    ``target_step_<unit>`` (:attr:`PositioningLog.text_steps`, file unit; None when unknown, 0 when declared
+    exact), ``u_reading_<ru>`` (q / sqrt 12, µm or arcsec) and ``u_<figure>_<ru>`` (:data:`STEP_SENSITIVITY`
+    times it), ``s_median_<ru>``, ``coarse`` (q > :data:`STEP_COARSE_RATIO` x the median s) and ``how``.
+    ``warning``: one line when coarse, else None. The figures are not changed: the rounding enters U cond
+    (:func:`figure_uncertainty`'s ``step``) as a measuring-conditions contribution."""
+    u = log.unit
+    ru, k = REPORT_UNIT[u]
+    mname = _NUMERIC_REQUIRED[u][1]
+    q, qt = log.text_steps.get("measured"), log.text_steps.get("target")
+    s_all = np.concatenate([np.asarray(result.s_up, float), np.asarray(result.s_down, float)])
+    s_med = float(np.median(s_all)) if s_all.size else 0.0
+    out: dict = {"column": mname, f"step_{u}": q, f"target_step_{u}": qt, f"s_median_{ru}": s_med * k}
+    if q is None:
+        out["how"] = "the step the readings were printed to is not known here (not read from text)"
+        return out, None
+    uq = q / math.sqrt(12.0)
+    out[f"u_reading_{ru}"] = uq * k
+    out.update({f"u_{f}_{ru}": c * uq * k for f, c in STEP_SENSITIVITY.items()})
+    coarse = q > STEP_COARSE_RATIO * s_med
+    out["coarse"] = bool(coarse)
+    out["how"] = ("each reading's rounding is uniform of width one step (u = step / sqrt 12); a machine repeating "
+                  "finer than the step prints its readings alike, so the rounding does not average over cycles: "
+                  "sqrt 2 u on B, B_mean, E, M (differences of means), 4 u on R (2 s + 2 s), sqrt 10 u on A; "
+                  "in U cond as a measuring-conditions contribution; the figures are the standard's, from the "
+                  f"readings as printed; warned when the step exceeds {STEP_COARSE_RATIO:g} x the median s")
+    if not coarse:
+        return out, None
+    qs = f"{q:g} {u}" + (f" ({q * k:g} {ru})" if u == "mm" else "")
+    w = (f"{log.source}: {mname} is printed to {qs}, coarser than the readings' repeatability (median s "
+         f"{s_med * k:.3g} {ru}{': most targets print their readings alike' if s_med == 0 else ''}): the rounding (u {uq * k:.3g} {ru} a reading) is in every figure, R and A "
+         f"up to {STEP_SENSITIVITY['R'] * uq * k:.3g} / {STEP_SENSITIVITY['A'] * uq * k:.3g} {ru} (1 sigma), "
+         "B and E by a step (JSON printed_step; in U cond when asked for): export the readings with more decimals")
+    return out, w
+
+
 def temperature_statement(travel_mm: float, inputs: UncertaintyInputs) -> dict:
     """What the budget did with the test's temperature: it corrects no reading (session 31, review31 F10).
 
@@ -1606,7 +1791,12 @@ def temperature_statement(travel_mm: float, inputs: UncertaintyInputs) -> dict:
     return out
 
 
-def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> UncertaintyBudget:
+#: The budget's name for the readings' printed step (:data:`STEP_SENSITIVITY`).
+STEP_SOURCE = "printed step (rounding)"
+
+
+def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs,
+                       step: float | None = None) -> UncertaintyBudget:
     """The uncertainty of the test's figures from the measuring conditions.
 
     In the manner of ISO/TR 230-9 (combined standard uncertainty as the
@@ -1624,6 +1814,9 @@ def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> Unce
     ========================  ==================================  ============
 
     ``L`` is the measurement travel (largest minus smallest target). The
+    ``step``: the step the measured readings were printed to, mm (:attr:`PositioningLog.text_steps`): its
+    rounding, u = step / sqrt 12 a reading, enters each figure with :data:`STEP_SENSITIVITY`'s factor
+    (``step_u``, a contribution of its own: it neither cancels at one target nor grows with L). The
     instrument, alignment and temperature errors are scale-like (they grow
     with the distance from where the instrument was zeroed), so they enter
     a range over the targets with their value at ``L`` and cancel in a
@@ -1654,7 +1847,12 @@ def figure_uncertainty(result: Iso2302Result, inputs: UncertaintyInputs) -> Unce
     k = 2.0
     U = {f: k * u_range for f in ("E_up", "E_down", "E", "M", "A_up", "A_down", "A")}
     U.update({f: k * u_diff for f in ("B", "B_mean", "R_up", "R_down", "R")})
+    step_u = None
+    if step:
+        uq = step * 1e3 / math.sqrt(12.0)
+        step_u = {f: c * uq for f, c in STEP_SENSITIVITY.items()}
+        U = {f: math.hypot(v, k * step_u[f]) for f, v in U.items()}
     return UncertaintyBudget(travel_mm=L_mm, contributions=rows, U=U, k=k,
                              temperature=temperature_statement(L_mm, inputs),
-                             U_sampling=sampling_uncertainty(result))
+                             U_sampling=sampling_uncertainty(result), step_u=step_u)
 

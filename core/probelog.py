@@ -254,6 +254,25 @@ _VECTORS = (("nx", "ny", "nz"), ("dx", "dy", "dz"), ("wnx", "wny", "wnz"))
 
 #: The rotary-axis columns: an empty cell is the spec's default, 0 (as the column absent).
 ROTARY_COLUMNS = ("A_deg", "B_deg", "C_deg")
+
+#: The units the spec's column names carry (the name's last part), for the message naming a column in another unit.
+_UNIT_WORDS = {"mm": "millimetres", "deg": "degrees", "s": "seconds", "C": "degrees Celsius"}
+
+
+def _spec_meant(name: str, seen) -> str | None:
+    """The spec column (:data:`REQUIRED`, :data:`OPTIONAL`) that ``name`` likely means, when ``name`` is not one
+    and that column is not in ``seen``: the same stem in another unit or case (``C_rad``, ``c_deg``, ``X_in``,
+    ``C``). None otherwise (review34: ``C_rad`` was kept as an unknown column and C read as 0 without a word;
+    the spec allows other columns, so the reader warns, it does not refuse)."""
+    if name in REQUIRED or name in OPTIONAL:
+        return None
+    stem = name.rsplit("_", 1)[0].lower() if "_" in name else name.lower()
+    for c in REQUIRED + OPTIONAL:
+        if "_" not in c or c in seen or c == "stylus_r_mm":
+            continue
+        if c.rsplit("_", 1)[0].lower() == stem:
+            return c
+    return None
 #: Least cosine between a touch's approach direction (``dx,dy,dz``) and the reversed normal ``-(nx,ny,nz)``
 #: (session 31, input31, review31 F5): the spec's normal points "out of the material (towards the stylus)" and
 #: ``dx,dy,dz`` is "the approach direction of the stylus at the trigger", so a stylus that triggers on the surface
@@ -897,8 +916,13 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
         seen.add(h)
     missing = [c for c in REQUIRED if c not in seen]
     if missing:
+        near = [h for h in header if _spec_meant(h, ()) == missing[0]]
         raise ProbeLogError(f"{src}: missing required column {missing[0]!r}"
-                            + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""))
+                            + (f" (and {len(missing) - 1} more)" if len(missing) > 1 else "")
+                            + (f"; column {near[0]!r} is there: the spec's name carries its unit "
+                               f"({missing[0]!r}: {_UNIT_WORDS.get(missing[0].rsplit('_', 1)[-1], '')})"
+                               if near else ""))
+    misnamed = [(h, m) for h in header if (m := _spec_meant(h, seen)) is not None]
     width = len(header)
     declared = meta.pop(NUMBER_FORMAT_KEY, None)  # (the file's text, not the log's content: a round trip equal)
     exact, fixed = (False, {}) if declared is None else parse_number_format(
@@ -939,6 +963,11 @@ def _parse(lines: Iterator[str], n_lines: int, unterminated: bool, src: str, pro
     del block, block_lines
     # the last row ends the file without an end of line: torn, or written by hand?
     warnings = list(meta_warnings)
+    for h, m in misnamed:   # (review34: a 'C_rad' column was carried along and C read as 0 without a word)
+        warnings.append(f"column {h!r} is not a probe-log column and is not read (carried along): the spec's is "
+                        f"{m!r} ({_UNIT_WORDS.get(m.rsplit('_', 1)[-1], 'no unit')}); without it "
+                        + (f"{m.split('_')[0]} is read as 0" if m in ROTARY_COLUMNS else f"{m!r} takes its default")
+                        + f": rename the column {m!r} (and convert its values) if it means that")
     if hashed:  # (review31e F2: a data row commented out with '#' became a one-touch set-up without a word)
         warnings.append(f"line {hashed[0][0]}: a whole row after the header starts with '#' (set-up {hashed[0][1]!r}"
                         + (f"; {len(hashed) - 1} more such rows" if len(hashed) > 1 else "")

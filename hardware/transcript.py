@@ -81,6 +81,16 @@ _AXIS_WORDS = re.compile(r"([XYZ])\s*([-+]?(?:\d+\.?\d*|\.\d+))", re.I)
 _REPORT_INCHES = re.compile(r"^\$13\s*=\s*([^\s(]*)")
 
 
+def _stamp_decimals(line: str) -> int:
+    """The decimals of a line's timestamp (its seconds' fraction), 0 without one."""
+    m = _TS.match(line)
+    if not m:
+        return 0
+    text = m.group("iso") or m.group("hms") or m.group("sec")
+    _, dot, frac = text.replace(",", ".").rpartition(":")[2].partition(".")
+    return len(frac) if dot else 0
+
+
 def _stamp(line: str) -> float | None:
     m = _TS.match(line)
     if not m:
@@ -174,6 +184,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     alarms, probing, errors, resets, strokes = [], [], [], [], []
     inch = False      # G20 sent: a probing move's words in inches (the reports stay mm, $13=0)
     t0 = None
+    stamp_decimals = 0    # the most decimals a timestamp prints: t_s is exact to them (review34)
     prev_info = False
     inch_reports = None     # (line, value, numeric) of a $13 that makes the reports after it inches
     ln = 0
@@ -181,6 +192,8 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         ts = _stamp(line)
         if ts is not None and t0 is None:
             t0 = ts
+        if ts is not None:
+            stamp_decimals = max(stamp_decimals, _stamp_decimals(line))
         m = _TS.match(line)
         body = (line[m.end():] if m else line).strip()
         way = body[:1] if body[:1] in "<>" else ""
@@ -255,6 +268,9 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
                     t[i] += 86400.0
                 else:
                     raise ProbeLogError(f"{p}: line {where[i]}: time goes backwards")
+        # the differences of stamps printed to d decimals are exact to d decimals; the float subtraction of two
+        # 1.8e9 s epoch stamps leaves noise near 1e-7 s (review34: 4.365999937057495 for 4.366), rounded off
+        t = np.round(t, stamp_decimals)
     return Session(np.array(pos, dtype=float).reshape(-1, 3), np.array(touched, dtype=bool), t, where, alarms,
                    probing, errors, resets, ln, strokes, printed)
 
@@ -462,6 +478,18 @@ def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
             continue
         if r >= n:
             return None, notes
+        # an error:N between the last report kept and this one (review34): a sender that went on after the
+        # controller refused a probing command leaves its row without a report, and every later report one off
+        since = s.lines[keep[-1]] if keep else 0
+        err = next(((ln, code) for ln, code in s.errors if since < ln < s.lines[j]), None)
+        if err is not None:
+            sent = [ln for ln in s.probing if since < ln < err[0]]
+            raise ProbeLogError(
+                f"{path}: line {err[0]}: error:{err[1]} answered "
+                + (f"the probing command of line {sent[-1]} " if sent else "a command ")
+                + f"(plan row {r}, target {plan.col('target')[r]!r}) and the sender went on: row {r} has no "
+                f"report and the reports after it would be one row off: cut the transcript after line {err[0]} "
+                "to import the rows before it (the run stopped there)")
         raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} "
                             f"{off_row_words(p, plan, r, pn, d, st, _UNKNOWN_GRBL)}: "
                             "not this plan's transcript, or its reports are one off")

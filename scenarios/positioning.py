@@ -88,8 +88,8 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     """
     from core.atomic import write_json_atomic
     from core.exceptions import ConfigError
-    from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning,
-                                  write_positioning_log)
+    from core.positioning import (arrange, baseline, figure_uncertainty, iso230_2, load_positioning, printed_step,
+                                  skipped_readings, write_positioning_log)
 
     if add_to and not comp_file:
         raise ConfigError("--add-to: give --comp-file too (the file to write: the old table plus this test's residual)")
@@ -106,11 +106,16 @@ def evaluate_file(path, json_out, report=None, *, kind: str = "auto", uncertaint
     rep["machine"] = log.meta.get("machine", "")
     rep["instrument"] = log.meta.get("instrument", "")
     rep["input_warnings"] = list(log.warnings)   # the reader's own (also among "warnings", with the test's)
+    rep["readings"] = skipped_readings(log)      # read, valid, left out for their status (review34)
     if rep.get("cycle_kind") == "pilgrim":
         rep["cycle_note"] = PILGRIM_NOTE
+    rep["printed_step"], w = printed_step(log, result)   # the readings' rounding (review34), beside the figures
+    if w:
+        result = dataclasses.replace(result, warnings=tuple(result.warnings) + (w,))
+        rep["warnings"] = list(result.warnings)
     budget = None
     if uncertainty is not None:
-        budget = figure_uncertainty(result, uncertainty)
+        budget = figure_uncertainty(result, uncertainty, step=log.text_steps.get("measured"))
         rep["uncertainty"] = budget.to_report()
         w = (budget.temperature or {}).get("warning")
         if w:   # (the readings are not corrected to 20 C here: said where the figures are, review31 F10)
@@ -222,7 +227,10 @@ def positioning_report(folder, rep: dict, log, *, budget=None, title: str = "ISO
                   + "".join(w[:1].upper() + w[1:] for w in [(budget.temperature or {}).get("what", "")])
                   + (f" (uncorrected, the expansion over the travel would be "
                      f"{budget.temperature['expansion_if_uncorrected_um']:+.3f} µm)."
-                     if budget.temperature else "")),
+                     if budget.temperature else "")
+                  + (f" The readings' printed step (rounding, u = step / sqrt 12 a reading) is a contribution of "
+                     f"its own, by figure: E, M, B {budget.step_u['E']:.4g}, A {budget.step_u['A']:.4g}, "
+                     f"R {budget.step_u['R']:.4g} µm (JSON printed_step)." if budget.step_u else "")),
             tables=[Table(["source", "u on E, M, A / µm", "u on B, R / µm"],
                           [[s, a, b] for s, (a, b) in budget.contributions.items()])]))
     b = rep["baseline"]

@@ -89,12 +89,19 @@ def run(args) -> int:
         print(f"vmt iso230-2: warning: {w}", file=sys.stderr)
     u = rep["unit"]
     sym = "um" if u == "um" else "arcsec"
-    from core.positioning import cycles_said
+    from core.positioning import cycles_said, skipped_said
 
+    skipped = skipped_said(rep.get("readings") or {})
     print(f"{args.log}: axis {rep['axis'] or '?'}, {rep['targets']} targets x {cycles_said(rep)}"
-          + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else ""))
+          + (f", {rep['cycle_kind']} cycle" if rep.get("cycle_kind") else "") + (f"; {skipped}" if skipped else ""))
     if rep.get("cycle_note"):
         print(f"  note: {rep['cycle_note']}")
+    st = rep.get("printed_step") or {}
+    if st.get(f"u_reading_{sym}", 0.0) >= 0.0005:   # shown where it reaches the figures' printed digits
+        unit = "mm" if sym == "um" else "deg"
+        print(f"  readings printed to {st[f'step_{unit}']:g} {unit}: rounding u {st[f'u_reading_{sym}']:.3f} {sym} a "
+              f"reading, R up to {st[f'u_R_{sym}']:.3f}, A {st[f'u_A_{sym}']:.3f}, B E M {st[f'u_E_{sym}']:.3f} "
+              f"{sym} (1 sigma{', in U cond' if rep.get('uncertainty') else ''})")
     U = rep.get("uncertainty") or {}
     if U:
         print("  (U cond: the measuring conditions' expanded uncertainty, k = 2; sampling: 2 x std of the figure "
@@ -103,7 +110,9 @@ def run(args) -> int:
         extra = (f"  (U cond {U[f'U_{name}_um']:.3f}, sampling {U[f'U_sampling_{name}_um']:.2f})"
                  if U and f"U_sampling_{name}_um" in U else f"  (U cond {U[f'U_{name}_um']:.3f})" if U else "")
         pad = " " * (4 - len(symbol.replace("\u0304", "")))  # B̄ carries a combining macron
-        print(f"  {symbol}{pad}{rep[f'{name}_{u}']:10.3f} {sym}{extra}   {meaning} [{clause}]")
+        v = rep[f"{name}_{u}"]
+        v = 0.0 if round(v, 3) == 0 else v   # a zero as 0.000, not -0.000 (float noise of mm subtraction, review34)
+        print(f"  {symbol}{pad}{v:10.3f} {sym}{extra}   {meaning} [{clause}]")
     from pathlib import Path
 
     print(f"wrote {args.json}" + (f" and {Path(args.report) / 'index.html'}" if args.report else "")

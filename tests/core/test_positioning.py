@@ -253,7 +253,8 @@ def test_one_target_refused():
 # review32d F2: a reading typed 100 m off its target, or deviations in um written in measured_mm, were
 # evaluated (R 1.8e8 um) with exit 0 and no word. Beyond 1 mm (DEVIATION_WARN, the machine file's bound) a
 # warning names the row and value; beyond it AND at least half the targets' spacing (the hand case: 100 mm
-# apart, so 50 mm) the reading is nearer another target than its own: refused, naming the row.
+# apart, so 50 mm) the reading is nearer another target than its own: refused, naming the row and (session 34,
+# review34: docs/formats.md promises both) its file line.
 def _one_changed(measured):
     rows = hand_rows()
     rows[3] = rows[3][:3] + (measured,)  # row 3: target 200 mm, cycle 1, '-'
@@ -265,7 +266,7 @@ def _one_changed(measured):
 def test_a_reading_nearer_another_target_is_refused_naming_its_row(measured, dev):
     with pytest.raises(PositioningLogError) as e:
         iso230_2(_one_changed(measured))
-    assert str(e.value).startswith(f"p.csv: row 3: measured {measured:g} mm at target 200 mm is {dev:g} mm off "
+    assert str(e.value).startswith(f"p.csv: row 3 (line 7): measured {measured:g} mm at target 200 mm is {dev:g} mm off "
                                    "it, nearer another target than its own (half the targets' spacing there: "
                                    "50 mm): no positioning error, a unit or typing slip"), str(e.value)
 
@@ -276,7 +277,7 @@ def test_a_deviation_beyond_1_mm_is_warned_of_naming_its_row():
     assert DEVIATION_WARN["mm"] == 1.0 and DEVIATION_WARN["deg"] == pytest.approx(0.0572958, rel=1e-6)
     r = iso230_2(_one_changed(200.0 - 1.5))  # 1.5 mm off: warned, still evaluated
     w = [x for x in r.warnings if "off it" in x]
-    assert w == ["p.csv: row 3: measured 198.5 mm at target 200 mm is -1.5 mm off it, beyond 1000 um, tens of "
+    assert w == ["p.csv: row 3 (line 7): measured 198.5 mm at target 200 mm is -1.5 mm off it, beyond 1000 um, tens of "
                  "times a machine's positioning error (a unit or typing slip?); 1 reading so far off, every "
                  "figure includes them"], r.warnings
     # by hand: the 200 mm '-' mean (-1500 - 6 - 7 - 6 - 8) / 5 = -305.4 um, so E = 5 - (-305.4) = 310.4 um
@@ -287,14 +288,14 @@ def test_a_deviation_beyond_1_mm_is_warned_of_naming_its_row():
     # a table (deviation_um) and a rotary axis follow the same rule
     lines = [f"{p} {c} {'up' if d == '+' else 'down'} {m}" for p, c, d, m in hand_rows()]
     lines[3] = "200.0 1 down 150.0"
-    with pytest.raises(PositioningLogError, match="t.txt: row 3: measured 150 mm at target 200 mm is -50 mm off"):
+    with pytest.raises(PositioningLogError, match=r"t.txt: row 3 \(line 4\): measured 150 mm at target 200 mm is -50 mm off"):
         iso230_2(parse_table("\n".join(lines), "t.txt"))
     rows = [(p / 100, c, d, p / 100 + (v - p) / 100 * 3.6) for p, c, d, v in hand_rows()]
     rows[3] = rows[3][:3] + (2.0 + 0.06,)  # 0.06 deg = 216 arcsec off (the bound 0.0573 deg, 206 arcsec)
     r = iso230_2(parse_positioning_log(hand_text(rows, header="target_deg,cycle,direction,measured_deg",
                                                  meta="# unit: deg\n"), source="c.csv"))
     assert [x for x in r.warnings if "off it" in x][0].startswith(
-        "c.csv: row 3: measured 2.06 deg at target 2 deg is 0.06 deg off it, beyond 0.0573 deg (206 arcsec)")
+        "c.csv: row 3 (line 7): measured 2.06 deg at target 2 deg is 0.06 deg off it, beyond 0.0573 deg (206 arcsec)")
 
 
 def test_make_log_checks_like_reading():

@@ -1,0 +1,137 @@
+"""The printed step of a positioning log's readings (session 34, review34's medium finding): recorded on reading,
+its rounding's uncertainty stated per figure and counted in U cond, a warning when it is coarse beside the
+repeatability; the figures themselves stay the standard's, from the readings as printed."""
+
+import math
+
+import numpy as np
+import pytest
+
+from core.positioning import (STEP_SENSITIVITY, Iso2302Result, PositioningLogError, UncertaintyInputs, arrange,
+                              figure_uncertainty, iso230_2, parse_positioning_log, parse_table, printed_step,
+                              read_positioning_log)
+
+SAMPLE = "scenarios/data/positioning-sample.csv"
+
+
+def _rounded(decimals: int, meta: str = "") -> str:
+    """The shipped sample with measured_mm printed to ``decimals`` (what a spreadsheet export holds)."""
+    out = []
+    for ln in open(SAMPLE).read().splitlines():
+        if ln.startswith("#") or ln.startswith("target"):
+            out.append(ln)
+            if ln.startswith("# format") and meta:
+                out.append(meta)
+            continue
+        c = ln.split(",")
+        c[3] = f"{float(c[3]):.{decimals}f}" if c[3] else c[3]
+        out.append(",".join(c))
+    return "\n".join(out) + "\n"
+
+
+def test_steps_recorded_from_the_digits():
+    log = read_positioning_log(SAMPLE)
+    assert log.text_steps == {"target": pytest.approx(1e-3, rel=1e-12), "measured": pytest.approx(1e-6, rel=1e-12)}
+    assert parse_positioning_log(_rounded(2)).text_steps["measured"] == pytest.approx(0.01, rel=1e-12)
+    assert log.lines is not None and log.lines[0] == 9   # 7 metadata lines, the header on line 8
+
+
+def test_number_format_line_is_honoured():
+    """The probe log's ``number_format`` words: exact -> step 0; a column declared to K decimals -> 10^-K."""
+    exact = parse_positioning_log(_rounded(2, "# number_format: shortest round-trip"))
+    assert exact.text_steps == {"target": 0.0, "measured": 0.0}
+    fixed = parse_positioning_log(_rounded(3, "# number_format: shortest round-trip; decimals measured_mm=3"))
+    assert fixed.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12) and fixed.text_steps["target"] == 0.0
+    with pytest.raises(PositioningLogError, match="names column 'X_mm', which the header does not have"):
+        parse_positioning_log(_rounded(3, "# number_format: shortest round-trip; decimals X_mm=3"))
+
+
+def test_coarse_step_warns_and_its_u_is_step_over_sqrt12():
+    log = parse_positioning_log(_rounded(2), source="r2.csv")
+    res = iso230_2(arrange(log))
+    rep, w = printed_step(log, res)
+    uq = 10.0 / math.sqrt(12.0)   # um: a 0.01 mm step, uniform
+    assert rep["step_mm"] == pytest.approx(0.01) and rep["u_reading_um"] == pytest.approx(uq, rel=1e-12)
+    assert rep["u_R_um"] == pytest.approx(4 * uq) and rep["u_A_um"] == pytest.approx(math.sqrt(10) * uq)
+    assert rep["u_E_um"] == pytest.approx(math.sqrt(2) * uq) and rep["coarse"] is True
+    assert w is not None and "measured_mm is printed to 0.01 mm (10 um)" in w and w.startswith("r2.csv: ")
+    # the full-precision sample: a 1 nm step, far below its s (0.19-0.85 um): no warning
+    full = read_positioning_log(SAMPLE)
+    rep, w = printed_step(full, iso230_2(arrange(full)))
+    assert w is None and rep["coarse"] is False and rep["u_reading_um"] == pytest.approx(1e-3 / math.sqrt(12))
+
+
+@pytest.mark.parametrize("decimals", [2, 3, 4])
+def test_rounded_figures_lie_within_the_steps_U_of_the_full_precision_ones(decimals):
+    """Known answer from outside the rounded file: the same readings at full precision. Each figure of the
+    rounded log is within k = 2 x the step's u of the full-precision figure (2 decimals: R 17.889 for 5.402,
+    |diff| 12.5 um = 4.3 u_q, U 23.1 um; A 34.889 for 18.583, 5.65 u_q against 2 sqrt 10 = 6.3). The figures are
+    NOT changed: they are the standard's from the readings as printed (R 17.889 stays)."""
+    full = iso230_2(arrange(read_positioning_log(SAMPLE)))
+    log = parse_positioning_log(_rounded(decimals))
+    res = iso230_2(arrange(log))
+    rep, _ = printed_step(log, res)
+    for f in Iso2302Result.FIGURES:
+        assert abs(getattr(res, f) - getattr(full, f)) * 1e3 <= 2 * rep[f"u_{f}_um"], f
+    if decimals == 2:
+        assert res.R * 1e3 == pytest.approx(17.889, abs=5e-4) and res.A * 1e3 == pytest.approx(34.889, abs=5e-4)
+
+
+def test_budget_counts_the_step_per_figure():
+    log = parse_positioning_log(_rounded(2))
+    res = iso230_2(arrange(log))
+    inp = UncertaintyInputs(u_instrument_um=0.1, eve_um=0.4)
+    b0 = figure_uncertainty(res, inp)
+    b1 = figure_uncertainty(res, inp, step=0.01)
+    assert b0.step_u is None and len(b0.to_report()["contributions"]) == 5
+    uq = 10.0 / math.sqrt(12.0)
+    for f, c in STEP_SENSITIVITY.items():
+        assert b1.U[f] == pytest.approx(2 * math.hypot(b0.U[f] / 2, c * uq), rel=1e-12)
+    rows = b1.to_report()["contributions"]
+    assert rows[-1]["source"] == "printed step (rounding)" and rows[-1]["u_R_um"] == pytest.approx(4 * uq)
+
+
+def test_table_deviation_um_step_in_mm():
+    text = "target,cycle,direction,deviation_um\n" + "".join(
+        f"{t},{c},{d},{0.1 * c + (1.0 if d == '-' else 0.0):.1f}\n"
+        for c in (1, 2, 3) for t in (0, 100, 200) for d in "+-")
+    log = parse_table(text)
+    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12)   # 0.1 um printed in um -> 1e-4 mm
+    assert log.text_steps["target"] == 1.0
+    assert np.all(log.lines == np.arange(2, 20))
+
+
+def test_the_writer_keeps_the_step_and_declares_memory_logs_exact():
+    """A log read with a 0.01 mm step written and read back keeps it (repr would print 405.770 as 405.77, and a
+    column whose values all end in 0 would come back coarser); a log built in memory is declared exact (its
+    shortest round-trip digits are not a print step)."""
+    from core.positioning import format_positioning_log, make_positioning_log
+
+    log = parse_positioning_log(_rounded(2))
+    text = format_positioning_log(log)
+    assert "# number_format: shortest round-trip; decimals target_mm=3, measured_mm=2\n" in text
+    back = parse_positioning_log(text)
+    assert back.text_steps == log.text_steps and format_positioning_log(back) == text
+    ok = log.ok
+    assert np.array_equal(back.measured[ok], log.measured[ok]) and np.array_equal(back.target, log.target)
+    # every measured value a whole 0.1 mm: the digits alone would read a 0.1 mm step; the declaration keeps 0.01
+    t = [0.0, 100.0] * 4
+    mem = make_positioning_log(t, [1, 1, 1, 1, 2, 2, 2, 2], "++--++--", [0.1, 100.2, 0.3, 100.1] * 2)
+    assert mem.text_steps == {}
+    back = parse_positioning_log(format_positioning_log(mem))
+    assert back.text_steps == {"target": 0.0, "measured": 0.0}
+    stepped = parse_positioning_log(format_positioning_log(
+        parse_positioning_log(format_positioning_log(mem).replace(
+            "# number_format: shortest round-trip", "# number_format: shortest round-trip; decimals measured_mm=2"))))
+    assert stepped.text_steps["measured"] == pytest.approx(0.01, rel=1e-12)
+
+
+def test_an_ecmc_file_records_its_step():
+    from core.positioning import parse_ecmc_dat
+
+    text = ("UNIT=mm\nTGT_DATA[1]=0\nTGT_DATA[2]=10\nREF_DATA_FWD[1,1]=0.0010\nREF_DATA_FWD[2,1]=10.0020\n"
+            "REF_DATA_FWD[1,2]=0.0010\nREF_DATA_FWD[2,2]=10.0020\nREF_DATA_BWD[1,1]=-0.0005\n"
+            "REF_DATA_BWD[2,1]=10.0000\nREF_DATA_BWD[1,2]=-0.0005\nREF_DATA_BWD[2,2]=10.0000\n")
+    log = parse_ecmc_dat(text, "e.dat")
+    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12) and log.text_steps["target"] == 1.0
+    assert list(log.lines[:2]) == [4, 5]   # cycle 1 FWD at targets 0, 10: REF_DATA_FWD[1,1], [2,1]
