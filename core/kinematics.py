@@ -145,7 +145,7 @@ def _exp_and_left_jacobian(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     K = skew(w)
     KK = K @ K
     a, b, c = a[..., None, None], b[..., None, None], c[..., None, None]
-    tmp = np.empty_like(K)  # (each sum as I + x K + y KK in that order, written in place: fewer temporaries, same numbers)
+    tmp = np.empty_like(K)  # (each sum I + x K + y KK in that order, in place: fewer temporaries, same numbers)
     R = np.multiply(a, K)
     R += np.eye(3)
     R += np.multiply(b, KK, out=tmp)
@@ -635,18 +635,13 @@ def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
         l2 = (x[3] * b[1] - x[4] * b[0]) + x[2]
         return (M[:, 0] * l0 + M[:, 2] * l2) + M[:, 1] * l1
 
-    def d_of_t(entries_t, entries_w):  # (3, n)
+    def d_of(entries_t, entries_w):  # (3, n)
         d = np.zeros((3, n))
         for i, xi in entries_t:
             d += moved(rot_W("t", pre_t, i), xi, end_of("t", suf_t, i))
         for i, xi in entries_w:
             d -= moved(rot_W("w", pre_w, i), xi, end_of("w", suf_w, i))
         return d
-
-    def d_of(entries_t, entries_w):
-        return d_of_t(entries_t, entries_w).T
-
-    d_of.t = d_of_t  # (the (3, n) form: sensitivity and jacobian_axes fill their (m, 3, n) with it)
 
     if which == "sym":
         return d_of, dst, dsw, n
@@ -674,7 +669,7 @@ def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=N
     d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym", J_m)
     out = np.empty((len(symbols), 3, n))
     for j, s in enumerate(symbols):
-        out[j] = d_of.t(dt.get(s, []), dw.get(s, []))
+        out[j] = d_of(dt.get(s, []), dw.get(s, []))
     return np.ascontiguousarray(out.transpose(2, 1, 0))
 
 
@@ -688,7 +683,7 @@ def jacobian_axes(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.n
     cols = ("X", "Y", "Z") + geom.chain.rotary_axes
     out = np.empty((len(cols), 3, n))
     for j, a in enumerate(cols):
-        out[j] = d_of.t(dt.get(a, []), dw.get(a, []))
+        out[j] = d_of(dt.get(a, []), dw.get(a, []))
     return np.ascontiguousarray(out.transpose(2, 1, 0))
 
 
