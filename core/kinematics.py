@@ -144,8 +144,15 @@ def _exp_and_left_jacobian(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a, b, c = _coeffs(np.linalg.norm(w, axis=-1))
     K = skew(w)
     KK = K @ K
-    return (np.eye(3) + a[..., None, None] * K + b[..., None, None] * KK,
-            np.eye(3) + b[..., None, None] * K + c[..., None, None] * KK)
+    a, b, c = a[..., None, None], b[..., None, None], c[..., None, None]
+    tmp = np.empty_like(K)  # (each sum I + x K + y KK in that order, in place: fewer temporaries, same numbers)
+    R = np.multiply(a, K)
+    R += np.eye(3)
+    R += np.multiply(b, KK, out=tmp)
+    Jl = np.multiply(b, K)
+    Jl += np.eye(3)
+    Jl += np.multiply(c, KK, out=tmp)
+    return R, Jl
 
 
 def _hom(R=None, t=None, n=1) -> np.ndarray:
@@ -597,23 +604,43 @@ def _derivs(geom, lin_m, rot_rad, values, which, J_m=None):
     suf_t = suffixes(Ft, p_end_t)
     suf_w = suffixes(Fw, p_end_w)
 
-    # R_RW^T times the rotation before factor i: shared by every symbol entering at factor i
+    # R_RW^T times the rotation before factor i: shared by every symbol entering at factor i. Kept as (3, 3, n)
+    # (row, column, pose) and each derivative as (3, n), so every product is a few contiguous rows of n numbers
+    # (session 34: the einsums over (n, 3, 3) were a third of a sensitivity's time); the sums in the order numpy's
+    # einsum took them on session 34's machine ("nji,njk->nik": j = 0, 1, 2; "nik,nk->ni": k = 0 + 2, then 1), where
+    # the sensitivities were the einsums' bit for bit (the MFB's seven calls, 15 random chains of n = 1 to 1000);
+    # another machine's einsum may order a sum of three otherwise (rounding, 1e-16 relative)
+    RWt = np.ascontiguousarray(R_RW.transpose(1, 2, 0))  # [j, i] = R_RW[:, j, i]
     to_W: dict = {}
+    at_end: dict = {}
 
     def rot_W(side, pre, i):
         M = to_W.get((side, i))
         if M is None:
-            M = to_W[(side, i)] = np.einsum("nji,njk->nik", R_RW, pre[i][:, :3, :3])
+            P = np.ascontiguousarray(pre[i][:, :3, :3].transpose(1, 2, 0))  # [j, k] = pre[i][:, j, k]
+            M = to_W[(side, i)] = (RWt[0][:, None] * P[0][None] + RWt[1][:, None] * P[1][None]) + \
+                RWt[2][:, None] * P[2][None]
         return M
 
-    def d_of(entries_t, entries_w):
-        d = np.zeros((n, 3))
+    def end_of(side, suf, i):  # the branch's end point after factor i, (3, n)
+        e = at_end.get((side, i))
+        if e is None:
+            e = at_end[(side, i)] = np.ascontiguousarray(suf[i][:, :3].T)
+        return e
+
+    def moved(M, xi, b):  # M (w x b + v) per pose, (3, n): _cross_rows, then einsum("nik,nk->ni")'s sums
+        x = xi.T
+        l0 = (x[4] * b[2] - x[5] * b[1]) + x[0]
+        l1 = (x[5] * b[0] - x[3] * b[2]) + x[1]
+        l2 = (x[3] * b[1] - x[4] * b[0]) + x[2]
+        return (M[:, 0] * l0 + M[:, 2] * l2) + M[:, 1] * l1
+
+    def d_of(entries_t, entries_w):  # (3, n)
+        d = np.zeros((3, n))
         for i, xi in entries_t:
-            loc = _cross_rows(xi[:, 3:], suf_t[i][:, :3]) + xi[:, :3]
-            d += np.einsum("nik,nk->ni", rot_W("t", pre_t, i), loc)
+            d += moved(rot_W("t", pre_t, i), xi, end_of("t", suf_t, i))
         for i, xi in entries_w:
-            loc = _cross_rows(xi[:, 3:], suf_w[i][:, :3]) + xi[:, :3]
-            d -= np.einsum("nik,nk->ni", rot_W("w", pre_w, i), loc)
+            d -= moved(rot_W("w", pre_w, i), xi, end_of("w", suf_w, i))
         return d
 
     if which == "sym":
@@ -640,10 +667,10 @@ def sensitivity(geom: ChainGeometry, lin_m, rot_rad=None, values=None, symbols=N
     for s in symbols:
         iso.symbol(s)
     d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "sym", J_m)
-    out = np.zeros((n, 3, len(symbols)))
+    out = np.empty((len(symbols), 3, n))
     for j, s in enumerate(symbols):
-        out[:, :, j] = d_of(dt.get(s, []), dw.get(s, []))
-    return out
+        out[j] = d_of(dt.get(s, []), dw.get(s, []))
+    return np.ascontiguousarray(out.transpose(2, 1, 0))
 
 
 def jacobian_axes(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.ndarray:
@@ -654,10 +681,10 @@ def jacobian_axes(geom: ChainGeometry, lin_m, rot_rad=None, values=None) -> np.n
     """
     d_of, dt, dw, n = _derivs(geom, lin_m, rot_rad, values, "axis")
     cols = ("X", "Y", "Z") + geom.chain.rotary_axes
-    out = np.zeros((n, 3, len(cols)))
+    out = np.empty((len(cols), 3, n))
     for j, a in enumerate(cols):
-        out[:, :, j] = d_of(dt.get(a, []), dw.get(a, []))
-    return out
+        out[j] = d_of(dt.get(a, []), dw.get(a, []))
+    return np.ascontiguousarray(out.transpose(2, 1, 0))
 
 
 # --------------------------------------------------------------------------- MFB eqs 10-12
