@@ -8879,6 +8879,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tupl
         for a in out:  # the count of alternatives the two-way test was made against, said with each
             a["two_way"]["alternatives_tried"] = len(out)
             a["two_way"]["p_adjusted_alternative_beyond"] = min(1.0, a["two_way"].pop("p_alternative_beyond") * len(out))
+            a["two_way"]["by_ratios"] = a["indistinguishable"]  # (the two ratios' verdict, kept for the report)
             ind = a["indistinguishable"] if ALTERNATIVES_TWO_WAY == "add" else False
             a["indistinguishable"] = bool(ind or not a["two_way"]["cause_stands"])
     return out
