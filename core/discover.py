@@ -8914,7 +8914,8 @@ def _two_way(so: _State, U: np.ndarray, B: np.ndarray, tm: Term, sigma: float, s
     Uc = new_basis(so.Q, E)
     d_a, p_a, _ = _beyond(so, Uc, B, sigma, 1.0, settings)
     return {"two_way": {"cause_beyond_ss_um2": d_c / UM ** 2, "p_adjusted_cause_beyond": p_c,
-                        "cause_stands": bool(stands), "alternative_beyond_ss_um2": d_a / UM ** 2,
+                        "cause_stands": bool(stands), "material_ss_um2": (settings.material_sigma * sigma) ** 2
+                        * len(so.rows) / UM ** 2, "alternative_beyond_ss_um2": d_a / UM ** 2,
                         "p_alternative_beyond": p_a}}
 
 
@@ -9342,8 +9343,17 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
         # confident: no other family's covariate reproduces the signal, and no
         # plainer explanation without a name explains as much (rival check)
         why = []
-        if ev["indistinguishable_from"]:
-            why.append("indistinguishable from a smooth term in " + ", ".join(ev["indistinguishable_from"]))
+        by_test = [a for a in alt if a["indistinguishable"] and "two_way" in a and not a["two_way"]["by_ratios"]]
+        by_ratio = [a["covariate"] for a in alt if a["indistinguishable"] and a not in by_test]
+        if by_ratio:
+            why.append("indistinguishable from a smooth term in " + ", ".join(by_ratio))
+        if by_test:  # ALTERNATIVES_TWO_WAY: the cause does not stand beyond the smooth, though the ratios miss
+            why.append("beyond a smooth term in " + ", ".join(
+                f"{a['covariate']} (reproducing {a['overlap']:.0%} of its signal) it explains "
+                f"{max(a['two_way']['cause_beyond_ss_um2'], 0.0):.3g} um^2 (materiality "
+                f"{a['two_way']['material_ss_um2']:.3g}; {fmt_p(a['two_way']['p_adjusted_cause_beyond'])})"
+                for a in by_test)
+                       + ", nothing material and significant: the data do not prefer the name")
         more = [a for a in alt if a.get("explains_more") and not a["indistinguishable"]]
         if more:
             why.append("a smooth term in " + ", ".join(f"{a['covariate']} (x{a['explained_ratio']:.2g}, reproducing "
