@@ -8878,7 +8878,8 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tupl
     if ALTERNATIVES_TWO_WAY != "off":
         for a in out:  # the count of alternatives the two-way test was made against, said with each
             a["two_way"]["alternatives_tried"] = len(out)
-            a["two_way"]["p_adjusted_alternative_beyond"] = min(1.0, a["two_way"].pop("p_alternative_beyond") * len(out))
+            p_a = a["two_way"].pop("p_alternative_beyond")
+            a["two_way"]["p_adjusted_alternative_beyond"] = min(1.0, p_a * len(out))
             a["two_way"]["by_ratios"] = a["indistinguishable"]  # (the two ratios' verdict, kept for the report)
             ind = a["indistinguishable"] if ALTERNATIVES_TWO_WAY == "add" else False
             a["indistinguishable"] = bool(ind or not a["two_way"]["cause_stands"])
@@ -8905,7 +8906,8 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tupl
 #: check moved (8 findings hedged by the test were hedged already); on gen_a reseat_hysteresis 1005-1104 and gen_c
 #: clamp_creep 5-88 (184) one reading moved, right -> right: clamp_creep 68 `part_change` -> `part_change?`.
 #: ``"replace"`` would besides make 16 of those 320 right names confident (the ratios hedged them, the cause standing
-#: beyond every smooth), none wrong: not measured on outcomes, left to the lead. docs/discovery.md, "Session 34: ...".
+#: beyond every smooth), none wrong: not measured on outcomes, left to the lead. docs/discovery.md, "Session 34: the
+#: alternatives gate as a two-way test, and an outlier finding's doubt carried back (alt34)".
 ALTERNATIVES_TWO_WAY = "add"
 
 

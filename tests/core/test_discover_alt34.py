@@ -7,7 +7,8 @@ Known answers on a made-up design (a cause that is there beside a smooth that re
 structure that the cause's columns only follow), the F statistics against explicit least squares, and the gate's
 verdicts through :func:`core.discover._alternatives`. :func:`core.discover._rejudged_beside_outlier_structure`
 (:data:`core.discover.OUTLIER_STRUCTURE_REJUDGED`) is checked on a made-up model and on a tuning campaign it mends
-(docs/discovery.md, "Session 34: ...").
+(docs/discovery.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's doubt carried
+back (alt34)").
 """
 
 from __future__ import annotations
@@ -174,12 +175,14 @@ def test_rejudged_beside_outlier_structure_hedges_a_cause_the_column_holds(monke
     assert list(got) == ["c_drift"] and got["c_drift"][0] == "reversed approach in its place"
     assert findings[0].evidence["confidence"] == "ambiguous"
     assert "reversed approach" in findings[0].evidence["confidence_reason"]
-    assert findings[1].evidence["confidence"] == "named" and findings[1].evidence["outlier_structure_rejudged"]["stands"]
+    assert findings[1].evidence["confidence"] == "named"
+    assert findings[1].evidence["outlier_structure_rejudged"]["stands"]
 
 
 # set C's two misses the rules were built for (spent blind seeds, read as the brief names them; the rules were judged
-# on tuning seeds: docs/discovery.md, "Session 34: ..."). Each read with the rule as the module has it and with it
-# off (the reading before): the second shows that the rule, not something else, makes the difference.
+# on tuning seeds: docs/discovery.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's
+# doubt carried back (alt34)"). Each read with the rule off (the reading before) and on: the second shows that the
+# rule, not something else, makes the difference.
 
 def _outcome(gen, effect, seed):
     from scenarios import hidden
