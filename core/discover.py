@@ -9361,7 +9361,7 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             why.append("beyond a smooth term in " + ", ".join(
                 f"{a['covariate']} (reproducing {a['overlap']:.0%} of its signal) it explains "
                 f"{max(a['two_way']['cause_beyond_ss_um2'], 0.0):.3g} um^2 (materiality "
-                f"{a['two_way']['material_ss_um2']:.3g}; {fmt_p(a['two_way']['p_adjusted_cause_beyond'])})"
+                f"{a['two_way']['material_ss_um2']:.3g}, {fmt_p(a['two_way']['p_adjusted_cause_beyond'])})"
                 for a in by_test)
                        + ", nothing material and significant: the data do not prefer the name")
         more = [a for a in alt if a.get("explains_more") and not a["indistinguishable"]]
