@@ -72,6 +72,8 @@ def test_gen_c_outlier_6106_named_outlier():
 def test_gen_c_outlier_6106_ripple_is_the_coarse_maps_without_the_rule(monkeypatch):
     """Without the rule (the session's blind miss): the 80 mm map's ripple, confident, beside the three outliers."""
     monkeypatch.setattr(D, "FINER_MAP_OUTLIERS_AGREE", False)
+    # (session 34's ALTERNATIVES_TWO_WAY hedges this reading on its own: off, to pin the reading without this rule)
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "off")
     o = _c6106()
     assert o.cause == "periodic_axis_error" and o.confident and "outlier" in o.findings, o
 

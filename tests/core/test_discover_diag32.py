@@ -144,6 +144,7 @@ def test_gen_a_reseat_hysteresis_9702_the_reversed_approach_explains_the_rows():
 @pytest.mark.slow
 def test_gen_b_stylus_bending_9702_mechanism(monkeypatch):
     monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)  # (the reading before session 33's hedge: vif33)
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "off")  # (and before session 34's, which hedges it too: alt34)
     log, _ = gen_b.generate("stylus_bending", 9702, effect_on=False)
     assert _read(log)[0] == "none"  # the same campaign without the effect
     log, _ = gen_b.generate("stylus_bending", 9702)

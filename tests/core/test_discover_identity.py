@@ -256,6 +256,12 @@ Refreshed for the fixed-share null drawn in a basis fixed by its subspace (sessi
 lobing_per_setup 1000 another sample (null median 0.7574, p 0.648, against the stored 0.7556, 0.645 from an Intel
 machine): its two leaves now 0.7524 and 0.6467, the same under any rotation of the bases
 (tests/core/test_discover_fixed_share_basis.py); every other leaf as stored.
+
+Refreshed for step 8's alternatives gate as a two-way test (session 34, ``core.discover.ALTERNATIVES_TWO_WAY``
+``"add"``): each listed alternative gains ``two_way`` (the cause's and the smooth's nested F tests beside each
+other: the demo's probe_lobing, the simulator's lobing_per_setup 1000, gen_a probe_lobing 302 and nonrigid 2; seven
+entries); no confidence, reason or other leaf moved (checked equal with the key stripped, then the key alone added).
+``OUTLIER_STRUCTURE_REJUDGED`` fired on none of the sixteen.
 """
 
 from __future__ import annotations

@@ -191,6 +191,8 @@ def test_gen_b_part_change_8101_bump_on_the_slot_is_hedged_with_part_change():
 @pytest.mark.slow
 def test_gen_b_part_change_8101_fails_without_the_rule(monkeypatch):
     monkeypatch.setattr(D, "DEFECT_BEYOND_ONE_FEATURE", False)
+    # (session 34's ALTERNATIVES_TWO_WAY hedges this reading on its own: off, to pin the reading without this rule)
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "off")
     o = _gen(gen_b, "part_change", 8101)
     assert o.cause == "local_scale_defect" and o.confident, o
 

@@ -162,6 +162,7 @@ def test_gen_b_stylus_bending_9702_inflated_signal_hedged(monkeypatch):
     significant after its 22 tries, and the inflated ones carry 99 % of its 4.65 um RMS of fitted values (0.18 um on
     the determined ones); named with doubt (the aim: no confident wrong name), name and estimate unchanged."""
     log, _ = gen_b.generate("stylus_bending", 9702)
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "off")  # (session 34's test hedges it too: this pins vif33's own)
     monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)
     r0 = discovered(log).to_report()
     monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", True)
@@ -203,8 +204,14 @@ def test_rules_as_shipped():
 
 @pytest.mark.slow
 def test_gen_b_stylus_bending_9702_aim_fails_without_the_hedge(monkeypatch):
-    """The aim's test (diag32's, a strict xfail until session 33) fails with INFLATED_SIGNAL_HEDGED off."""
+    """The aim's test (diag32's, a strict xfail until session 33) fails with INFLATED_SIGNAL_HEDGED off (and session
+    34's ALTERNATIVES_TWO_WAY off, which hedges it on its own: both readings below)."""
     monkeypatch.setattr(D, "INFLATED_SIGNAL_HEDGED", False)
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "off")
     log, _ = gen_b.generate("stylus_bending", 9702)
     rep = discovered(log).to_report()
     assert rep["cause"] == "probe_lobing" and rep["findings"][0]["evidence"]["confidence"] == "named"
+    monkeypatch.setattr(D, "ALTERNATIVES_TWO_WAY", "add")
+    rep = discovered(log).to_report()
+    assert rep["cause"] == "probe_lobing" and rep["findings"][0]["evidence"]["confidence"] == "ambiguous"
+    assert "beyond a smooth term in" in rep["findings"][0]["evidence"]["confidence_reason"]
