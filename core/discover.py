@@ -10849,6 +10849,8 @@ def _fine_hedged(bl, terms, hedged: dict, alpha: float) -> dict:
     if s is None:
         return {}
     return {c: (length, s) for c, length in cands if length < s}
+
+
 #: Whether :data:`FORM_SHIFT_CARRIED` reads the cause only in those of its other forms that have no direction inflated
 #: beyond ``vif_max`` themselves (True), or in every other passing form (False). A reading inflated as the adopted
 #: one is carries its own amplification along the inflated direction into the shift: on gen_a thermal_drift
