@@ -43,6 +43,7 @@ def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(m
     # session 32: the hedged part_change's own shift (HEDGED_SHIFT_CARRIED, on) covers it: 13.61 <= 4.96 + 14.30
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
     monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
+    monkeypatch.setattr(D, "FINE_SHIFT_CARRIED", False)  # (its hedged 6.78 mm periodic term's shift, session 34)
     o = _fl1009()
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 21's engine: 13.61 > 4.96 + 7.28
 
