@@ -1809,23 +1809,39 @@ class ModelErrorShare:
         return {"entered": list(self.entered), "step_mm": MFB_MODEL_ERROR_STEP_M * 1e3,
                 "gate": (f"p < {MFB_MODEL_ERROR_P:.3g}" if MFB_MODEL_ERROR_EXACT_GATE else f"z > {MFB_MODEL_ERROR_Z:g}"),
                 "z_min": MFB_MODEL_ERROR_Z,
-                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s], "p": self.p[s]} for s in self.entered},
+                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s],
+                          "p": None if self.p is None else self.p[s]} for s in self.entered},
                 "z": {s: round(float(v), 2) for s, v in self.z.items()},
-                "p": {s: float(f"{v:.3g}") for s, v in self.p.items()}}
+                "p": None if self.p is None else {s: float(f"{v:.3g}") for s, v in self.p.items()}}
 
 
-def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
+def _fine_kinematics(res: VolumetricResult, prep) -> dict:
+    """What :func:`_fine_rows` needs of the chain, the same for every table: the touches' sensitivity
+    along their approach (t_all, 21) and each measurement's first touch in them (:func:`_touch_kinematics`),
+    and the sensitivity of each measurement without touches (its index -> (k, 3, 21)). Computed once for
+    the 18 tables (they were computed once per table before session 34: the same numbers, 18 times)."""
+    out = {"Sd": None, "at": {}, "S": {}}
+    if prep.batch is not None:
+        St, _, at = _touch_kinematics(prep, None, res.design.slices, False, True)
+        out["Sd"], out["at"] = np.einsum("tj,tjs->ts", prep.batch["d_W"], St), at
+    for i, pm in enumerate(prep):
+        if not pm["touches"]:
+            out["S"][i] = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)
+    return out
+
+
+def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
     positions the touches and the nodes span) as the rows of (1) see it (as :func:`ripple_columns` carries a
     function of the axis position: each touch's sensitivity along its approach, the extraction's gain, the
-    shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge."""
+    shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge. ``kin``:
+    :func:`_fine_kinematics` of ``prep`` (computed here when not given)."""
     ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
     d = res.design
     x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
-    Sd = None
-    if prep.batch is not None:
-        St, _, at = _touch_kinematics(prep, None, d.slices, False, True)
-        Sd = np.einsum("tj,tj->t", prep.batch["d_W"], St[:, :, ks])
+    kin = _fine_kinematics(res, prep) if kin is None else kin
+    at = kin["at"]
+    Sd = None if kin["Sd"] is None else kin["Sd"][:, ks]
     xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
     lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
     hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
@@ -1849,20 +1865,21 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
             t = len(x)
             dy = (pm["GW"].reshape(3 * k, t) @ (Sd[at[i]:at[i] + t, None] * H)).reshape(k, 3, f + 1)
         else:
-            S = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)[:, :, ks]
+            S = kin["S"][i][:, :, ks]
             dy = S[:, :, None] * H[:, None, :]
         dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
         Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
         r0 += 3 * k
     S = np.zeros((len(d.names), f + 1))
     S[d.slices[symbol]] = hat(x_n)
-    S = np.column_stack([d.to_gauge(S[:, j]) for j in range(f + 1)])
+    if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
+        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
     return Phi, S
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                       cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
-                      z_min: float = MFB_MODEL_ERROR_Z) -> ModelErrorShare | None:
+                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True) -> ModelErrorShare | None:
     """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
 
     :func:`core.uncertainty.model_error_budget`'s way for the MFB's correlated inputs: each motion table
@@ -1879,6 +1896,10 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     z_min`` (or ``p`` below :data:`MFB_MODEL_ERROR_P` with :data:`MFB_MODEL_ERROR_EXACT_GATE`), and the
     entered tables' ``s_T^2`` solve the moment equations ``q_T -
     tr(W_T^T Mp W_T) = sum_U s_U^2 |W_T^T W_U|_F^2`` non-negative (the probing noise known).
+
+    ``exact_p`` False (and :data:`MFB_MODEL_ERROR_EXACT_GATE` off, so the gate is z): ``p`` is not computed
+    (None; about half the function's CPU, 18 numerical integrations), for a caller that keeps only the
+    columns (the budget study's runs, :func:`scenarios.mfb.budget_run`); the shares are the same.
 
     Returns None when there is no probing noise to test against (``sigma_probe_m`` 0).
 
@@ -1903,20 +1924,25 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
-    fine = [_fine_rows(res, meas, prep, s, step_m) for s in syms]
+    kin = _fine_kinematics(res, prep)
+    fine = [_fine_rows(res, meas, prep, s, step_m, kin) for s in syms]
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
+    # every W_T lies in Rp's column space (an orthonormal Q, one SVD): each W_T's SVD is Q times that of the
+    # much shorter Q^T W_T (the same singular values and vectors to rounding; session 34, 2-4 x less CPU)
+    Uq, sq, _ = np.linalg.svd(Rp, full_matrices=False)
+    Q = Uq[:, sq > (sq[0] * 1e-12 if len(sq) and sq[0] > 0 else np.inf)]
     for Phi, _ in fine:
-        W = Rp @ Phi
-        Uw, sw, _ = np.linalg.svd(W, full_matrices=False)
+        Uw, sw, _ = np.linalg.svd(Q.T @ (Rp @ Phi), full_matrices=False)
         keep = sw > (sw[0] * 1e-10 if len(sw) and sw[0] > 0 else np.inf)
-        Ws.append(Uw[:, keep] * sw[keep])
+        Ws.append(Q @ (Uw[:, keep] * sw[keep]))
     q = np.array([float(np.sum((W.T @ rp) ** 2)) for W in Ws])
     WM = [W.T @ Mp @ W for W in Ws]
     e0 = np.array([float(np.trace(a)) for a in WM])
     v0 = np.array([2.0 * float(np.sum(a * a)) for a in WM])
     z = np.where(v0 > 0, (q - e0) / np.sqrt(np.where(v0 > 0, v0, 1.0)), 0.0)
     pv = np.ones(len(syms))
-    for k, (a, qk) in enumerate(zip(WM, q)):
+    exact_p = exact_p or MFB_MODEL_ERROR_EXACT_GATE
+    for k, (a, qk) in enumerate(zip(WM, q) if exact_p else ()):
         lam = np.linalg.eigvalsh(a) if a.size else np.zeros(0)
         lam = lam[lam > (lam.max() * 1e-12 if lam.size and lam.max() > 0 else np.inf)]
         if lam.size >= 2:
@@ -1938,4 +1964,5 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
                            {s: float(v) for s, v in zip(syms, z)},
                            tuple(s for s, v in zip(syms, s2) if v > 0), C,
-                           {s: float(v) for s, v in zip(syms, pv)})
+                           {s: float(v) for s, v in zip(syms, pv)} if exact_p else None)
+

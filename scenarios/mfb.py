@@ -1469,7 +1469,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
         machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None,
-        declared_ripple: dict | None = None, extraction: bool | None = None) -> ScenarioResult:
+        declared_ripple: dict | None = None, extraction: bool | None = None,
+        model_error_held: bool = True) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -1558,6 +1559,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         the exact extraction (the touches, which carry their features and
         normals, moved by the errors and fitted again) or by the linear gain
         (default :data:`core.volumetric.EXACT_EXTRACTION`).
+    model_error_held : bool
+        With :data:`MFB_MODEL_ERROR_SHARE` on: compute the tables' model-error statistics also when the
+        lack-of-fit gate keeps them out of the U95 (JSON ``model_error.held``, its ``z`` and ``p``; the
+        default). False skips them there (the U95 and covariance are the same: no share enters through a
+        closed gate) and the tables' exact tails ``p`` where it opens (``model_error.p`` null), as the budget
+        study's runs do (:func:`budget_run`, no JSON kept): most of a run's CPU.
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -1710,13 +1717,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     u_cal_fit = u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal)
     lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit,
                           np.asarray(u_place, float) if draw else None, cal_map=cal_map)
+    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
     share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit,
-                                   np.asarray(u_place, float) if draw else None, cal_map=cal_map)
-             if MFB_MODEL_ERROR_SHARE and noisy else None)
+                                   np.asarray(u_place, float) if draw else None, cal_map=cal_map,
+                                   exact_p=model_error_held)
+             if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
     # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
     # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model
     # misses structure (MFB_MODEL_ERROR_GATE)
-    gate = share is not None and (not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits))
+    gate = share is not None and opens
     me_g = share.columns if gate and share.entered else None
     # the U95 whenever an input has an uncertainty: the probing noise, a declared ripple, or the bar's
     # calibration u (given, noise or not: a noise-free run's U95 is the calibration's alone, linear, or
@@ -2579,7 +2588,7 @@ def budget_run(name: str, j: int, *, seed: int = 1, u_stylus_um: float = 0.5, lo
     try:
         r = run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, seed=seed + j,
                 u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
-                bar_temperature_C=float(T), machine_temperature_C=float(T))
+                bar_temperature_C=float(T), machine_temperature_C=float(T), model_error_held=False)
     except PlanError as e:
         # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
         # on a machine the probe would strike or miss the bar and the operator would set it again
