@@ -1765,7 +1765,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from core.state import identified_on
 
     doc["estimate"]["identified_on"] = identified_on(   # its tables run along Z: no single height
-        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None)
+        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None,
+        (float(t_touch.min()), float(t_touch.max())) if t_touch.size else None)  # the campaign's clock (F8)
     if declared:
         doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
     doc["machine"] = cfg.name
