@@ -1830,12 +1830,14 @@ def _fine_kinematics(res: VolumetricResult, prep) -> dict:
     return out
 
 
-def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None):
+def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None,
+               centres: bool = False):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
     positions the touches and the nodes span) as the rows of (1) see it (as :func:`ripple_columns` carries a
     function of the axis position: each touch's sensitivity along its approach, the extraction's gain, the
     shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge. ``kin``:
-    :func:`_fine_kinematics` of ``prep`` (computed here when not given)."""
+    :func:`_fine_kinematics` of ``prep`` (computed here when not given); ``centres``: also the hat functions'
+    centres (f,) m, axis positions (a third value)."""
     ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
     d = res.design
     x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
@@ -1874,7 +1876,7 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
     S[d.slices[symbol]] = hat(x_n)
     if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
         S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
-    return Phi, S
+    return (Phi, S, lo + h * np.arange(f + 1)) if centres else (Phi, S)
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
@@ -1966,3 +1968,119 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
                            tuple(s for s, v in zip(syms, s2) if v > 0), C,
                            {s: float(v) for s, v in zip(syms, pv)} if exact_p else None)
 
+
+# --------------------------------------------------------------------------- between the nodes (session 34)
+#: The level of the between-node test (:func:`between_nodes_fit`): the smallest interval's p times the number of
+#: intervals tested (Bonferroni), below this, says the residuals show structure between two nodes of a table
+#: that its interpolation does not follow. :data:`LACK_OF_FIT_P`'s 1e-3: about one false note in a thousand
+#: runs whose model holds, whatever the number of intervals.
+BETWEEN_NODES_P = 1e-3
+
+
+@dataclass(frozen=True)
+class BetweenNodes:
+    """The residuals between two nodes of a table against the probing noise (:func:`between_nodes_fit`).
+
+    Attributes
+    ----------
+    symbol : str
+        The table of the interval whose statistic is least likely under the probing noise.
+    interval_m : (float, float)
+        Its two nodes, m (axis positions).
+    p : float
+        That interval's tail probability under the probing noise (exact: Imhof).
+    p_family : float
+        ``p`` times the number of intervals tested (at most 1): what the test compares with its level.
+    intervals : int
+        The intervals tested (every table's intervals between consecutive nodes that the touches see).
+    fits : bool
+        ``p_family >= BETWEEN_NODES_P``.
+    ratio : float
+        That interval's statistic over its probing-noise expectation (1 when the interpolation holds).
+    """
+
+    symbol: str
+    interval_m: tuple
+    p: float
+    p_family: float
+    intervals: int
+    fits: bool
+    ratio: float
+
+    def as_dict(self) -> dict:
+        unit = "urad" if iso.symbol(self.symbol).angular else "um"
+        return {"symbol": self.symbol, "interval_mm": [v * 1e3 for v in self.interval_m], "p": self.p,
+                "p_family": self.p_family, "intervals": self.intervals, "level": BETWEEN_NODES_P,
+                "fits": self.fits, "tested_ratio": self.ratio, "unit": unit}
+
+
+def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+                      cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M) -> BetweenNodes | None:
+    """Between-node test of an MFB identification (review33a F5): does a table miss structure between two of
+    its nodes, where the map follows the tables' interpolation and the U95 (of the node values) says nothing?
+
+    :func:`lack_of_fit` tests all residuals at once: a local error (a 2 um bump 10 mm wide between two nodes
+    69 mm apart) moves few of them and is diluted (review33a: p 0.01-0.04, no note, the map off by 1.9-2.4 x
+    the nodes' U95 there). Here each table's fine table (:func:`model_error_share`'s hat functions ``step_m``
+    apart) is cut into the intervals between its consecutive nodes; an interval's hat functions ``Phi_k``
+    give the residual directions an error there alone would move, ``W_k = Rp Phi_k`` (the bar calibration's
+    and placements' directions projected out, as in :func:`lack_of_fit`), and ``q_k = |W_k^T rp|^2`` is a
+    quadratic form of the probing noise with the eigenvalues of ``W_k^T Mp W_k`` as weights: its tail by
+    Satterthwaite's scaled chi-square on every interval, then exactly (Imhof,
+    :func:`core.lsq.quadratic_form_sf`) on the smallest. The test: that ``p`` times the number of intervals
+    (Bonferroni) against :data:`BETWEEN_NODES_P`.
+
+    Returns None when there is no probing noise (``sigma_probe_m`` 0) or no interval the touches see.
+
+    Raises
+    ------
+    ConfigError
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
+        ``step_m`` not > 0.
+    """
+    from scipy.stats import chi2
+
+    from .lsq import quadratic_form_sf
+
+    u_cal, up = _noise_inputs("between_nodes_fit", sigma_probe_m, u_cal_m, u_place)
+    if not (np.isfinite(step_m) and step_m > 0):
+        raise ConfigError(f"between_nodes_fit: step_m must be > 0, got {step_m!r}")
+    if sigma_probe_m == 0:
+        return None
+    meas = list(meas)
+    nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
+    kin = _fine_kinematics(res, prep)
+    d = res.design
+    rows = []  # (p Satterthwaite, symbol, (x0, x1), q, A)
+    for s in MOTION:
+        x_n = np.asarray(d.nodes[iso.symbol(s).axis], float)
+        if len(x_n) < 2:
+            continue
+        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True)
+        RPhi = Rp @ Phi
+        for x0, x1 in zip(x_n[:-1], x_n[1:]):
+            cols = (c > x0 + 1e-9) & (c < x1 - 1e-9)
+            W = RPhi[:, cols]
+            if not W.size or not np.any(W):
+                continue
+            A = W.T @ Mp @ W
+            t1, t2 = float(np.trace(A)), float(np.sum(A * A))
+            if not (t1 > 0 and t2 > 0):
+                continue
+            q = float(np.sum((W.T @ rp) ** 2))
+            rows.append((float(chi2.sf(q / (t2 / t1), t1 * t1 / t2)), s, (float(x0), float(x1)), q, A, t1))
+    if not rows:
+        return None
+    p0, s, iv, q, A, t1 = min(rows, key=lambda r: r[0])
+    lam = np.linalg.eigvalsh(A)
+    lam = lam[lam > lam.max() * 1e-12] if lam.size and lam.max() > 0 else lam[:0]
+    if lam.size >= 2:
+        p = quadratic_form_sf(lam, q)
+    elif lam.size:
+        p = float(chi2.sf(q / lam[0], 1))
+    else:
+        p = p0
+    n = len(rows)
+    pf = min(1.0, p * n)
+    return BetweenNodes(s, iv, float(p), float(pf), n, pf >= BETWEEN_NODES_P, float(q / t1))

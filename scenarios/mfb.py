@@ -1799,6 +1799,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["lack_of_fit"] = lof.as_dict()
         if not lof.fits:
             doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
+    # between two nodes of a table (review33a F5): a local error the whole-residual test dilutes
+    bn = (vol.between_nodes_fit(res_g, meas, probe.sigma_m, u_cal_fit, np.asarray(u_place, float) if draw else None,
+                                cal_map=cal_map) if MFB_BETWEEN_NODES and noisy else None)
+    if bn is not None:
+        doc["between_nodes"] = bn.as_dict()
+        if not bn.fits:
+            doc["between_nodes_note"] = between_nodes_note(bn)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     if varying:  # what `injected` is for a table that drifts in time (review30b F2)
@@ -1828,7 +1835,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 #: budget study's runs (stylus, lobing and temperature drawn, outside the noise model) the lack-of-fit gate
 #: opens on most runs and the share widens their own U95: the stored 1,000-run studies
 #: (scenarios/data/mfb-*-budget-study.npz, their doc tables) hold the U95 without it and must be made
-#: again before it is on (docs/papers-mfb.md, that section).
+#: again before it is on (docs/papers-mfb.md, that section). Session 34 (mfbu34, review33a F4): the share
+#: 4-5 x cheaper and the remake started (the 3-axis study's errors come back bit for bit, the gate opens on
+#: about 1 run in 4); not finished by the session's deadline: what is left, docs/papers-mfb.md "Remaking the
+#: budget studies with the share (session 34)".
 MFB_MODEL_ERROR_SHARE = False
 #: The model-error share enters only when :func:`core.volumetric.lack_of_fit` rejects the noise model (the
 #: run's ``model_fit_note``): without this gate the per-table z > 3 rule let a share into the U95 on 10 of
@@ -1849,6 +1859,22 @@ def _campaign_mean(f, x, t_s: np.ndarray, name: str, varying: dict) -> np.ndarra
         return v0
     varying[name] = float(np.max(V.max(axis=0) - V.min(axis=0)))
     return V.mean(axis=0)
+
+
+#: The between-node test in every noisy MFB run (:func:`core.volumetric.between_nodes_fit`, review33a F5, session
+#: 34): JSON ``between_nodes`` and, when it rejects, ``between_nodes_note``. A note, nothing else: the U95 stays
+#: the node values' (docs/papers-mfb.md, "Between the nodes (session 34)").
+MFB_BETWEEN_NODES = True
+
+
+def between_nodes_note(bn) -> str:
+    """The run's one-line note when a table misses structure between two of its nodes (:func:`core.volumetric.
+    between_nodes_fit`, review33a F5)."""
+    a, b = (v * 1e3 for v in bn.interval_m)
+    return (f"between {bn.symbol}'s nodes at {a:g} and {b:g} mm the residuals are {bn.ratio:.1f} x what the probing "
+            f"noise leaves (p = {bn.p:.1e}, {bn.p_family:.1e} over the {bn.intervals} intervals tested): the tables' "
+            "interpolation misses structure there; the U95 holds at the nodes, the map between them may be off by "
+            "more")
 
 
 def lack_of_fit_note(lof, nodes) -> str:
