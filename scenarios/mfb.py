@@ -2943,6 +2943,34 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
             list(mapper(_study_attempt, [(name, j, str(d), settings) for j in todo]))
 
 
+def remake_study_with_share(name: str, directory, runs: int = 1000, *, stored=None, progress=None) -> dict:
+    """Make a stored budget study again with the model-error share on (review33a F4, session 34), into
+    ``directory`` (resumable, as :func:`budget_study`): model (3)'s linear extraction, as the stored studies were
+    made (``core.volumetric.EXACT_EXTRACTION`` False while it runs), :data:`MFB_MODEL_ERROR_SHARE` True while it
+    runs, the shares (noise-free runs, which the share does not touch) copied from ``stored`` (default
+    ``scenarios/data/NAME-budget-study.npz``), every attempt run again in this process. The runs' ``error``
+    must come back equal to the stored ones (the share moves no estimate; only the gated runs' own U95 grow):
+    check them before :func:`assemble_study` replaces the file. Returns :func:`study_arrays` of what is done."""
+    from pathlib import Path
+
+    from core import volumetric as vol
+
+    global MFB_MODEL_ERROR_SHARE
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    stored = Path(__file__).resolve().parent / "data" / f"{name}-budget-study.npz" if stored is None else Path(stored)
+    if not (d / "shares.npz").exists():
+        keys = ("keep", "U_temp", "t_rms", "stylus_runs", "stylus_components", "slices")
+        with np.load(stored, allow_pickle=True) as z:
+            _npz_atomic(d / "shares.npz", **{k: z[k] for k in z.files if k in keys or k.startswith(("U:", "sens:"))})
+    was = (vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE)
+    vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE = False, True
+    try:
+        return budget_study(name, d, runs, workers=1, progress=progress)
+    finally:
+        vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE = was
+
+
 def study_arrays(directory, runs: int | None = None) -> dict:
     """The runs of a study directory (:func:`budget_study`) as arrays: the attempts 1..J of the
     longest complete prefix, ``ok`` (J,) bool, ``T_C``, ``phase_rad`` (J,), ``error`` and
