@@ -1833,7 +1833,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 #: propagated through K into the node values, the U95 and the covariance. Session 29, docs/papers-mfb.md
 #: "A model-error share in the U95 (session 29)". OFF: validated on the review's truths, but on the 3-axis
 #: budget study's runs (stylus, lobing and temperature drawn, outside the noise model) the lack-of-fit gate
-#: opens on most runs and the share widens their own U95: the stored 1,000-run studies
+#: opens on about a quarter of the runs (99 of attempts 1-387, session 34) and the share widens their own U95: the stored 1,000-run studies
 #: (scenarios/data/mfb-*-budget-study.npz, their doc tables) hold the U95 without it and must be made
 #: again before it is on (docs/papers-mfb.md, that section). Session 34 (mfbu34, review33a F4): the share
 #: 4-5 x cheaper and the remake started (the 3-axis study's errors come back bit for bit, the gate opens on
