@@ -19,7 +19,9 @@ covariance")::
      "values": [...],                            # one per parameter, in its unit
      "covariance": [[...], ...],                 # n x n, entry (i, j) in unit_i * unit_j
      "identified_on": {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]",
-                       "probe_offsets_J_mm": [[0, 0, 150]] | null, "z_mm": [27.0, 27.0] | null}}
+                       "probe_offsets_J_mm": [[0, 0, 150]] | null, "z_mm": [27.0, 27.0] | null,
+                       "t_s": [0.0, 4210.5],                             # optional (session 34)
+                       "temperature_C": {"temp_spindle_C": [20.1, 20.4, 20.9]}}}  # optional: min, mean, max
 
 ``positions`` is :data:`POSITIONS` (the nodes at the axis positions reading + J); a ``vmt identify``
 without ``--tool-offset-mm`` (J unknown) writes :data:`POSITIONS_READINGS`, its nodes at the readings, and a
@@ -32,7 +34,12 @@ the readings under either wording.
 state was identified on: the machine's name and ISO 10791 chain, the probe offsets J of the touches
 (mm, tool side; null: the log did not state them) and the range of the touches' Z axis readings (mm; null
 for a 3D identification whose tables run along Z). A state is refused on another machine or chain
-(:func:`identified_on_mismatch`).
+(:func:`identified_on_mismatch`). Since session 34 (review33a F8) it may also say when and at what
+temperature: ``t_s`` the first and last touch's time (s from the campaign's start, the log's ``t_s``:
+probe-log/1 holds no clock date) and ``temperature_C`` per ``temp_<name>_C`` sensor of the log its min,
+mean and max over the touches used. Both keys are left out when the log does not give them (a record
+written before session 34 has neither and reads as before); :func:`temperature_notice` compares them
+with the temperatures of the touches a state is applied to.
 
 A parameter with a ``symbol`` and ``at_mm`` is one node of that ISO 230-1
 motion error's table along its axis (the symbol names the axis); with a
@@ -118,13 +125,75 @@ def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interp
             "parameters": params, "values": (theta * 1e6).tolist(), "covariance": (cov * 1e12).tolist()}
 
 
-def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None) -> dict:
+def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None, t_s=None, temperature_C=None) -> dict:
     """The ``identified_on`` record of an estimate (module doc): ``machine`` name, ``chain`` (ISO 10791),
-    ``probe_offsets_J_mm`` (k, 3) mm or None (unknown), ``z_mm`` (lo, hi) of the touches' Z readings or None."""
+    ``probe_offsets_J_mm`` (k, 3) mm or None (unknown), ``z_mm`` (lo, hi) of the touches' Z readings or None;
+    optional (keys left out when None): ``t_s`` (first, last) touch time, s from the campaign's start, and
+    ``temperature_C`` {sensor column: (min, mean, max)} degC (:func:`log_conditions` makes both from a log)."""
     J = None if probe_offsets_J_mm is None else [[round(float(v), 9) for v in j] for j in probe_offsets_J_mm]
     z = None if z_mm is None else [round(float(v), 9) for v in z_mm]
-    return {"machine": None if machine is None else str(machine), "chain": None if chain is None else str(chain),
-            "probe_offsets_J_mm": J, "z_mm": z}
+    rec = {"machine": None if machine is None else str(machine), "chain": None if chain is None else str(chain),
+           "probe_offsets_J_mm": J, "z_mm": z}
+    if t_s is not None:
+        rec["t_s"] = [round(float(v), 6) for v in t_s]
+    if temperature_C is not None:
+        rec["temperature_C"] = {str(k): [round(float(v), 6) for v in vals] for k, vals in temperature_C.items()}
+    return rec
+
+
+def log_conditions(log, used=None) -> dict:
+    """The keyword arguments ``t_s`` and ``temperature_C`` of :func:`identified_on` from a probe log's touches
+    ``used`` (bool mask, default ``log.ok``): the first and last finite ``t_s``, and per ``temp_<name>_C``
+    column with a finite value its min, mean and max; None where the log gives none."""
+    used = np.asarray(log.ok if used is None else used, bool)
+    t = np.asarray(log.col("t_s"), float)[used] if "t_s" in log.columns else np.zeros(0)
+    t = t[np.isfinite(t)]
+    temps = {}
+    for name in log.temperature_columns():
+        v = np.asarray(log.col(name), float)[used]
+        v = v[np.isfinite(v)]
+        if v.size:
+            temps[name] = (float(v.min()), float(v.mean()), float(v.max()))
+    return {"t_s": (float(t.min()), float(t.max())) if t.size else None, "temperature_C": temps or None}
+
+
+#: A state applied to touches whose sensor reads this much off (degC) from the mean it was identified at
+#: (the same ``temp_<name>_C`` column) gets a notice (:func:`temperature_notice`): a steel machine's scales
+#: move by 11.5 um/m per degC (scenarios.mfb.MACHINE_CTE_PER_C), 3.5 um over 300 mm at 1 degC, several
+#: times an MFB node's U95 (0.4-0.7 um).
+TEMPERATURE_NOTICE_C = 1.0
+
+
+def temperature_notice(state: "MachineState", temperature_C: dict | None) -> str | None:
+    """A notice when a sensor the state's record names (``identified_on.temperature_C``) reads, in the touches
+    the state is applied to (``temperature_C`` {column: (min, mean, max)}, :func:`log_conditions`), a mean
+    more than :data:`TEMPERATURE_NOTICE_C` from the one it was identified at; None when they agree, when either
+    side has no temperatures, or when they share no sensor (nothing to compare: the caller may say what the
+    record holds, :func:`describe_conditions`)."""
+    rec = state.identified_on or {}
+    then = rec.get("temperature_C") or {}
+    now = temperature_C or {}
+    off = [(k, float(then[k][1]), float(now[k][1])) for k in then if k in now
+           and abs(float(now[k][1]) - float(then[k][1])) > TEMPERATURE_NOTICE_C]
+    if not off:
+        return None
+    return (f"{state.source}: identified at " + ", ".join(f"{k} {a:.1f} C" for k, a, _ in off) + ", applied to "
+            "touches at " + ", ".join(f"{b:.1f} C" for _, _, b in off) + f" (more than {TEMPERATURE_NOTICE_C:g} C "
+            "apart): the machine's thermal state differs, its errors may too, and its U95 does not hold that")
+
+
+def describe_conditions(state: "MachineState") -> str | None:
+    """One line of what the record says of when and at what temperature the state was identified (None: it
+    says neither, a record written before session 34 or a log without them)."""
+    rec = state.identified_on or {}
+    parts = []
+    if rec.get("temperature_C"):
+        parts.append("at " + ", ".join(f"{k} {v[1]:.1f} C ({v[0]:.1f}..{v[2]:.1f})"
+                                       for k, v in rec["temperature_C"].items()))
+    if rec.get("t_s"):
+        a, b = rec["t_s"]
+        parts.append(f"touches over {b - a:.0f} s of its campaign (t_s {a:g}..{b:g} s)")
+    return f"{state.source}: identified " + "; ".join(parts) if parts else None
 
 
 def _same_chain(a: str, b: str) -> bool:
@@ -427,4 +496,11 @@ def _read_identified_on(rec, fail) -> dict | None:
     z = rec.get("z_mm")
     if z is not None and not (numbers(z, 2) and z[0] <= z[1]):
         fail("identified_on.z_mm", "expected [lo, hi] mm (lo <= hi) or null")
-    return identified_on(rec.get("machine"), rec.get("chain"), J, z)
+    t = rec.get("t_s")
+    if t is not None and not (numbers(t, 2) and t[0] <= t[1]):
+        fail("identified_on.t_s", "expected [first, last] s (first <= last) or null")
+    temps = rec.get("temperature_C")
+    if temps is not None and not (isinstance(temps, dict) and all(
+            isinstance(k, str) and numbers(v, 3) and v[0] <= v[1] <= v[2] for k, v in temps.items())):
+        fail("identified_on.temperature_C", "expected {sensor: [min, mean, max] C} (min <= mean <= max) or null")
+    return identified_on(rec.get("machine"), rec.get("chain"), J, z, t, temps)

@@ -1809,23 +1809,41 @@ class ModelErrorShare:
         return {"entered": list(self.entered), "step_mm": MFB_MODEL_ERROR_STEP_M * 1e3,
                 "gate": (f"p < {MFB_MODEL_ERROR_P:.3g}" if MFB_MODEL_ERROR_EXACT_GATE else f"z > {MFB_MODEL_ERROR_Z:g}"),
                 "z_min": MFB_MODEL_ERROR_Z,
-                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s], "p": self.p[s]} for s in self.entered},
+                "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s],
+                          "p": None if self.p is None else self.p[s]} for s in self.entered},
                 "z": {s: round(float(v), 2) for s, v in self.z.items()},
-                "p": {s: float(f"{v:.3g}") for s, v in self.p.items()}}
+                "p": None if self.p is None else {s: float(f"{v:.3g}") for s, v in self.p.items()}}
 
 
-def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
+def _fine_kinematics(res: VolumetricResult, prep) -> dict:
+    """What :func:`_fine_rows` needs of the chain, the same for every table: the touches' sensitivity
+    along their approach (t_all, 21) and each measurement's first touch in them (:func:`_touch_kinematics`),
+    and the sensitivity of each measurement without touches (its index -> (k, 3, 21)). Computed once for
+    the 18 tables (they were computed once per table before session 34: the same numbers, 18 times)."""
+    out = {"Sd": None, "at": {}, "S": {}}
+    if prep.batch is not None:
+        St, _, at = _touch_kinematics(prep, None, res.design.slices, False, True)
+        out["Sd"], out["at"] = np.einsum("tj,tjs->ts", prep.batch["d_W"], St), at
+    for i, pm in enumerate(prep):
+        if not pm["touches"]:
+            out["S"][i] = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)
+    return out
+
+
+def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None,
+               centres: bool = False):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
     positions the touches and the nodes span) as the rows of (1) see it (as :func:`ripple_columns` carries a
     function of the axis position: each touch's sensitivity along its approach, the extraction's gain, the
-    shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge."""
+    shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge. ``kin``:
+    :func:`_fine_kinematics` of ``prep`` (computed here when not given); ``centres``: also the hat functions'
+    centres (f,) m, axis positions (a third value)."""
     ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
     d = res.design
     x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
-    Sd = None
-    if prep.batch is not None:
-        St, _, at = _touch_kinematics(prep, None, d.slices, False, True)
-        Sd = np.einsum("tj,tj->t", prep.batch["d_W"], St[:, :, ks])
+    kin = _fine_kinematics(res, prep) if kin is None else kin
+    at = kin["at"]
+    Sd = None if kin["Sd"] is None else kin["Sd"][:, ks]
     xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
     lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
     hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
@@ -1849,20 +1867,21 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float):
             t = len(x)
             dy = (pm["GW"].reshape(3 * k, t) @ (Sd[at[i]:at[i] + t, None] * H)).reshape(k, 3, f + 1)
         else:
-            S = sensitivity(pm["g"], pm["q"], pm["rot"], None, symbols=MOTION + SQUARENESS)[:, :, ks]
+            S = kin["S"][i][:, :, ks]
             dy = S[:, :, None] * H[:, None, :]
         dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
         Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
         r0 += 3 * k
     S = np.zeros((len(d.names), f + 1))
     S[d.slices[symbol]] = hat(x_n)
-    S = np.column_stack([d.to_gauge(S[:, j]) for j in range(f + 1)])
-    return Phi, S
+    if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
+        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
+    return (Phi, S, lo + h * np.arange(f + 1)) if centres else (Phi, S)
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                       cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
-                      z_min: float = MFB_MODEL_ERROR_Z) -> ModelErrorShare | None:
+                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True) -> ModelErrorShare | None:
     """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
 
     :func:`core.uncertainty.model_error_budget`'s way for the MFB's correlated inputs: each motion table
@@ -1879,6 +1898,10 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     z_min`` (or ``p`` below :data:`MFB_MODEL_ERROR_P` with :data:`MFB_MODEL_ERROR_EXACT_GATE`), and the
     entered tables' ``s_T^2`` solve the moment equations ``q_T -
     tr(W_T^T Mp W_T) = sum_U s_U^2 |W_T^T W_U|_F^2`` non-negative (the probing noise known).
+
+    ``exact_p`` False (and :data:`MFB_MODEL_ERROR_EXACT_GATE` off, so the gate is z): ``p`` is not computed
+    (None; about half the function's CPU, 18 numerical integrations), for a caller that keeps only the
+    columns (the budget study's runs, :func:`scenarios.mfb.budget_run`); the shares are the same.
 
     Returns None when there is no probing noise to test against (``sigma_probe_m`` 0).
 
@@ -1903,20 +1926,25 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
-    fine = [_fine_rows(res, meas, prep, s, step_m) for s in syms]
+    kin = _fine_kinematics(res, prep)
+    fine = [_fine_rows(res, meas, prep, s, step_m, kin) for s in syms]
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
+    # every W_T lies in Rp's column space (an orthonormal Q, one SVD): each W_T's SVD is Q times that of the
+    # much shorter Q^T W_T (the same singular values and vectors to rounding; session 34, 2-4 x less CPU)
+    Uq, sq, _ = np.linalg.svd(Rp, full_matrices=False)
+    Q = Uq[:, sq > (sq[0] * 1e-12 if len(sq) and sq[0] > 0 else np.inf)]
     for Phi, _ in fine:
-        W = Rp @ Phi
-        Uw, sw, _ = np.linalg.svd(W, full_matrices=False)
+        Uw, sw, _ = np.linalg.svd(Q.T @ (Rp @ Phi), full_matrices=False)
         keep = sw > (sw[0] * 1e-10 if len(sw) and sw[0] > 0 else np.inf)
-        Ws.append(Uw[:, keep] * sw[keep])
+        Ws.append(Q @ (Uw[:, keep] * sw[keep]))
     q = np.array([float(np.sum((W.T @ rp) ** 2)) for W in Ws])
     WM = [W.T @ Mp @ W for W in Ws]
     e0 = np.array([float(np.trace(a)) for a in WM])
     v0 = np.array([2.0 * float(np.sum(a * a)) for a in WM])
     z = np.where(v0 > 0, (q - e0) / np.sqrt(np.where(v0 > 0, v0, 1.0)), 0.0)
     pv = np.ones(len(syms))
-    for k, (a, qk) in enumerate(zip(WM, q)):
+    exact_p = exact_p or MFB_MODEL_ERROR_EXACT_GATE
+    for k, (a, qk) in enumerate(zip(WM, q) if exact_p else ()):
         lam = np.linalg.eigvalsh(a) if a.size else np.zeros(0)
         lam = lam[lam > (lam.max() * 1e-12 if lam.size and lam.max() > 0 else np.inf)]
         if lam.size >= 2:
@@ -1938,4 +1966,121 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
                            {s: float(v) for s, v in zip(syms, z)},
                            tuple(s for s, v in zip(syms, s2) if v > 0), C,
-                           {s: float(v) for s, v in zip(syms, pv)})
+                           {s: float(v) for s, v in zip(syms, pv)} if exact_p else None)
+
+
+# --------------------------------------------------------------------------- between the nodes (session 34)
+#: The level of the between-node test (:func:`between_nodes_fit`): the smallest interval's p times the number of
+#: intervals tested (Bonferroni), below this, says the residuals show structure between two nodes of a table
+#: that its interpolation does not follow. :data:`LACK_OF_FIT_P`'s 1e-3: about one false note in a thousand
+#: runs whose model holds, whatever the number of intervals.
+BETWEEN_NODES_P = 1e-3
+
+
+@dataclass(frozen=True)
+class BetweenNodes:
+    """The residuals between two nodes of a table against the probing noise (:func:`between_nodes_fit`).
+
+    Attributes
+    ----------
+    symbol : str
+        The table of the interval whose statistic is least likely under the probing noise.
+    interval_m : (float, float)
+        Its two nodes, m (axis positions).
+    p : float
+        That interval's tail probability under the probing noise (exact: Imhof).
+    p_family : float
+        ``p`` times the number of intervals tested (at most 1): what the test compares with its level.
+    intervals : int
+        The intervals tested (every table's intervals between consecutive nodes that the touches see).
+    fits : bool
+        ``p_family >= BETWEEN_NODES_P``.
+    ratio : float
+        That interval's statistic over its probing-noise expectation (1 when the interpolation holds).
+    """
+
+    symbol: str
+    interval_m: tuple
+    p: float
+    p_family: float
+    intervals: int
+    fits: bool
+    ratio: float
+
+    def as_dict(self) -> dict:
+        unit = "urad" if iso.symbol(self.symbol).angular else "um"
+        return {"symbol": self.symbol, "interval_mm": [v * 1e3 for v in self.interval_m], "p": self.p,
+                "p_family": self.p_family, "intervals": self.intervals, "level": BETWEEN_NODES_P,
+                "fits": self.fits, "tested_ratio": self.ratio, "unit": unit}
+
+
+def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+                      cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M) -> BetweenNodes | None:
+    """Between-node test of an MFB identification (review33a F5): does a table miss structure between two of
+    its nodes, where the map follows the tables' interpolation and the U95 (of the node values) says nothing?
+
+    :func:`lack_of_fit` tests all residuals at once: a local error (a 2 um bump 10 mm wide between two nodes
+    69 mm apart) moves few of them and is diluted (review33a: p 0.01-0.04, no note, the map off by 1.9-2.4 x
+    the nodes' U95 there). Here each table's fine table (:func:`model_error_share`'s hat functions ``step_m``
+    apart) is cut into the intervals between its consecutive nodes; an interval's hat functions ``Phi_k``
+    give the residual directions an error there alone would move, ``W_k = Rp Phi_k`` (the bar calibration's
+    and placements' directions projected out, as in :func:`lack_of_fit`), and ``q_k = |W_k^T rp|^2`` is a
+    quadratic form of the probing noise with the eigenvalues of ``W_k^T Mp W_k`` as weights: its tail by
+    Satterthwaite's scaled chi-square on every interval, then exactly (Imhof,
+    :func:`core.lsq.quadratic_form_sf`) on the smallest. The test: that ``p`` times the number of intervals
+    (Bonferroni) against :data:`BETWEEN_NODES_P`.
+
+    Returns None when there is no probing noise (``sigma_probe_m`` 0) or no interval the touches see.
+
+    Raises
+    ------
+    ConfigError
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
+        ``step_m`` not > 0.
+    """
+    from scipy.stats import chi2
+
+    from .lsq import quadratic_form_sf
+
+    u_cal, up = _noise_inputs("between_nodes_fit", sigma_probe_m, u_cal_m, u_place)
+    if not (np.isfinite(step_m) and step_m > 0):
+        raise ConfigError(f"between_nodes_fit: step_m must be > 0, got {step_m!r}")
+    if sigma_probe_m == 0:
+        return None
+    meas = list(meas)
+    nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
+    kin = _fine_kinematics(res, prep)
+    d = res.design
+    rows = []  # (p Satterthwaite, symbol, (x0, x1), q, A)
+    for s in MOTION:
+        x_n = np.asarray(d.nodes[iso.symbol(s).axis], float)
+        if len(x_n) < 2:
+            continue
+        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True)
+        RPhi = Rp @ Phi
+        for x0, x1 in zip(x_n[:-1], x_n[1:]):
+            cols = (c > x0 + 1e-9) & (c < x1 - 1e-9)
+            W = RPhi[:, cols]
+            if not W.size or not np.any(W):
+                continue
+            A = W.T @ Mp @ W
+            t1, t2 = float(np.trace(A)), float(np.sum(A * A))
+            if not (t1 > 0 and t2 > 0):
+                continue
+            q = float(np.sum((W.T @ rp) ** 2))
+            rows.append((float(chi2.sf(q / (t2 / t1), t1 * t1 / t2)), s, (float(x0), float(x1)), q, A, t1))
+    if not rows:
+        return None
+    p0, s, iv, q, A, t1 = min(rows, key=lambda r: r[0])
+    lam = np.linalg.eigvalsh(A)
+    lam = lam[lam > lam.max() * 1e-12] if lam.size and lam.max() > 0 else lam[:0]
+    if lam.size >= 2:
+        p = quadratic_form_sf(lam, q)
+    elif lam.size:
+        p = float(chi2.sf(q / lam[0], 1))
+    else:
+        p = p0
+    n = len(rows)
+    pf = min(1.0, p * n)
+    return BetweenNodes(s, iv, float(p), float(pf), n, pf >= BETWEEN_NODES_P, float(q / t1))

@@ -1469,7 +1469,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         u_stylus_um: float = 0.0, bar_temperature_C: float = 20.0, hook=None, progress=None,
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
         machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None,
-        declared_ripple: dict | None = None, extraction: bool | None = None) -> ScenarioResult:
+        declared_ripple: dict | None = None, extraction: bool | None = None,
+        model_error_held: bool = True) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -1558,6 +1559,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         the exact extraction (the touches, which carry their features and
         normals, moved by the errors and fitted again) or by the linear gain
         (default :data:`core.volumetric.EXACT_EXTRACTION`).
+    model_error_held : bool
+        With :data:`MFB_MODEL_ERROR_SHARE` on: compute the tables' model-error statistics also when the
+        lack-of-fit gate keeps them out of the U95 (JSON ``model_error.held``, its ``z`` and ``p``; the
+        default). False skips them there (the U95 and covariance are the same: no share enters through a
+        closed gate) and the tables' exact tails ``p`` where it opens (``model_error.p`` null), as the budget
+        study's runs do (:func:`budget_run`, no JSON kept): most of a run's CPU.
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -1710,13 +1717,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     u_cal_fit = u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal)
     lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit,
                           np.asarray(u_place, float) if draw else None, cal_map=cal_map)
+    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
     share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit,
-                                   np.asarray(u_place, float) if draw else None, cal_map=cal_map)
-             if MFB_MODEL_ERROR_SHARE and noisy else None)
+                                   np.asarray(u_place, float) if draw else None, cal_map=cal_map,
+                                   exact_p=model_error_held)
+             if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
     # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
     # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model
     # misses structure (MFB_MODEL_ERROR_GATE)
-    gate = share is not None and (not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits))
+    gate = share is not None and opens
     me_g = share.columns if gate and share.entered else None
     # the U95 whenever an input has an uncertainty: the probing noise, a declared ripple, or the bar's
     # calibration u (given, noise or not: a noise-free run's U95 is the calibration's alone, linear, or
@@ -1756,7 +1765,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     from core.state import identified_on
 
     doc["estimate"]["identified_on"] = identified_on(   # its tables run along Z: no single height
-        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None)
+        cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None,
+        (float(t_touch.min()), float(t_touch.max())) if t_touch.size else None)  # the campaign's clock (F8)
     if declared:
         doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
     doc["machine"] = cfg.name
@@ -1789,6 +1799,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["lack_of_fit"] = lof.as_dict()
         if not lof.fits:
             doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
+    # between two nodes of a table (review33a F5): a local error the whole-residual test dilutes
+    bn = (vol.between_nodes_fit(res_g, meas, probe.sigma_m, u_cal_fit, np.asarray(u_place, float) if draw else None,
+                                cal_map=cal_map) if MFB_BETWEEN_NODES and noisy else None)
+    if bn is not None:
+        doc["between_nodes"] = bn.as_dict()
+        if not bn.fits:
+            doc["between_nodes_note"] = between_nodes_note(bn)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     if varying:  # what `injected` is for a table that drifts in time (review30b F2)
@@ -1816,9 +1833,12 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
 #: propagated through K into the node values, the U95 and the covariance. Session 29, docs/papers-mfb.md
 #: "A model-error share in the U95 (session 29)". OFF: validated on the review's truths, but on the 3-axis
 #: budget study's runs (stylus, lobing and temperature drawn, outside the noise model) the lack-of-fit gate
-#: opens on most runs and the share widens their own U95: the stored 1,000-run studies
+#: opens on about a quarter of the runs (99 of attempts 1-387, session 34) and the share widens their own U95: the stored 1,000-run studies
 #: (scenarios/data/mfb-*-budget-study.npz, their doc tables) hold the U95 without it and must be made
-#: again before it is on (docs/papers-mfb.md, that section).
+#: again before it is on (docs/papers-mfb.md, that section). Session 34 (mfbu34, review33a F4): the share
+#: 4-5 x cheaper and the remake started (the 3-axis study's errors come back bit for bit, the gate opens on
+#: about 1 run in 4); not finished by the session's deadline: what is left, docs/papers-mfb.md "Remaking the
+#: budget studies with the share (session 34)".
 MFB_MODEL_ERROR_SHARE = False
 #: The model-error share enters only when :func:`core.volumetric.lack_of_fit` rejects the noise model (the
 #: run's ``model_fit_note``): without this gate the per-table z > 3 rule let a share into the U95 on 10 of
@@ -1839,6 +1859,22 @@ def _campaign_mean(f, x, t_s: np.ndarray, name: str, varying: dict) -> np.ndarra
         return v0
     varying[name] = float(np.max(V.max(axis=0) - V.min(axis=0)))
     return V.mean(axis=0)
+
+
+#: The between-node test in every noisy MFB run (:func:`core.volumetric.between_nodes_fit`, review33a F5, session
+#: 34): JSON ``between_nodes`` and, when it rejects, ``between_nodes_note``. A note, nothing else: the U95 stays
+#: the node values' (docs/papers-mfb.md, "Between the nodes (session 34)").
+MFB_BETWEEN_NODES = True
+
+
+def between_nodes_note(bn) -> str:
+    """The run's one-line note when a table misses structure between two of its nodes (:func:`core.volumetric.
+    between_nodes_fit`, review33a F5)."""
+    a, b = (v * 1e3 for v in bn.interval_m)
+    return (f"between {bn.symbol}'s nodes at {a:g} and {b:g} mm the residuals are {bn.ratio:.1f} x what the probing "
+            f"noise leaves (p = {bn.p:.1e}, {bn.p_family:.1e} over the {bn.intervals} intervals tested): the tables' "
+            "interpolation misses structure there; the U95 holds at the nodes, the map between them may be off by "
+            "more")
 
 
 def lack_of_fit_note(lof, nodes) -> str:
@@ -2579,7 +2615,7 @@ def budget_run(name: str, j: int, *, seed: int = 1, u_stylus_um: float = 0.5, lo
     try:
         r = run(name, mc_runs=0, bar_calibration=bar_calibration, bar_true_m=bar_true_m, seed=seed + j,
                 u_stylus_um=u_stylus_um, lobing_m=((lobing_k, a * np.cos(ph), a * np.sin(ph)),),
-                bar_temperature_C=float(T), machine_temperature_C=float(T))
+                bar_temperature_C=float(T), machine_temperature_C=float(T), model_error_held=False)
     except PlanError as e:
         # the drawn placement puts the bar beyond the program's margins (placement_margin_m, 5 sigma):
         # on a machine the probe would strike or miss the bar and the operator would set it again
@@ -2905,6 +2941,34 @@ def budget_study(name: str, directory, runs: int = 1000, *, workers: int = 1, se
             todo = [j for j in range(1, top + 1) if j not in done][:size] or \
                 list(range(top + 1, top + 1 + max(1, min(size, runs - ok + 2))))
             list(mapper(_study_attempt, [(name, j, str(d), settings) for j in todo]))
+
+
+def remake_study_with_share(name: str, directory, runs: int = 1000, *, stored=None, progress=None) -> dict:
+    """Make a stored budget study again with the model-error share on (review33a F4, session 34), into
+    ``directory`` (resumable, as :func:`budget_study`): model (3)'s linear extraction, as the stored studies were
+    made (``core.volumetric.EXACT_EXTRACTION`` False while it runs), :data:`MFB_MODEL_ERROR_SHARE` True while it
+    runs, the shares (noise-free runs, which the share does not touch) copied from ``stored`` (default
+    ``scenarios/data/NAME-budget-study.npz``), every attempt run again in this process. The runs' ``error``
+    must come back equal to the stored ones (the share moves no estimate; only the gated runs' own U95 grow):
+    check them before :func:`assemble_study` replaces the file. Returns :func:`study_arrays` of what is done."""
+    from pathlib import Path
+
+    from core import volumetric as vol
+
+    global MFB_MODEL_ERROR_SHARE
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    stored = Path(__file__).resolve().parent / "data" / f"{name}-budget-study.npz" if stored is None else Path(stored)
+    if not (d / "shares.npz").exists():
+        keys = ("keep", "U_temp", "t_rms", "stylus_runs", "stylus_components", "slices")
+        with np.load(stored, allow_pickle=True) as z:
+            _npz_atomic(d / "shares.npz", **{k: z[k] for k in z.files if k in keys or k.startswith(("U:", "sens:"))})
+    was = (vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE)
+    vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE = False, True
+    try:
+        return budget_study(name, d, runs, workers=1, progress=progress)
+    finally:
+        vol.EXACT_EXTRACTION, MFB_MODEL_ERROR_SHARE = was
 
 
 def study_arrays(directory, runs: int | None = None) -> dict:

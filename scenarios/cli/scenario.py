@@ -69,6 +69,8 @@ def _mfb(args) -> int:
         print(f"note: {d['u95_scope']}")
     if d.get("model_fit_note"):
         print(f"note: {d['model_fit_note']}")
+    if d.get("between_nodes_note"):
+        print(f"note: {d['between_nodes_note']}")
     if d.get("twists"):
         from scenarios.mfb import describe_twists
 

@@ -107,6 +107,12 @@ def run(args) -> int:
             raise ConfigError(f"--machine-state {args.machine_state}: {why}")
         if notice:
             print(notice)
+        # when and at what temperature it was identified (review33a F8), beside the plan's own sensors
+        from core.state import describe_conditions, log_conditions, temperature_notice
+
+        for line in (describe_conditions(state), temperature_notice(state, log_conditions(plan)["temperature_C"])):
+            if line:
+                print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
     # adaptive (JCGM 101 7.9): the total is the runs foreseen now, revised as the batches come in (review32d F10)

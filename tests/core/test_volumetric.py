@@ -336,6 +336,24 @@ def test_model_error_share_enters_only_when_residuals_show_it_and_bad_input(meas
     assert vol.model_error_share(res, meas, 0.0, u0) is None
     d = loud.as_dict()
     assert d["entered"] == list(loud.entered) and set(d["u"]) == set(loud.entered)
+    # without the exact tails (session 34: the budget study's runs keep the columns only) the shares are the
+    # same numbers, p None; the JSON says p null
+    fast = vol.model_error_share(res, meas, 1e-12, u0, exact_p=False)
+    assert fast.p is None and fast.entered == loud.entered and fast.z == loud.z and fast.u == loud.u
+    assert np.array_equal(fast.columns, loud.columns) and fast.as_dict()["p"] is None
+    # the fine rows' kinematics computed once for the 18 tables (session 34) give each table's rows as a
+    # call of its own does (the same numbers: the first table checked bit for bit)
+    prep = vol._prepare_all(meas, res.chain, res.rotary_points_R_m, res.design.nodes)
+    kin = vol._fine_kinematics(res, prep)
+    for s in ("EXX", "EBZ"):
+        a, b = vol._fine_rows(res, meas, prep, s, 1e-3, kin), vol._fine_rows(res, meas, prep, s, 1e-3)
+        assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+        # the node values, put in the design's gauge all columns at once: each column is in the gauge
+        # (Design.to_gauge leaves it where it is, to rounding) and the hat functions' values sum to 1 per node
+        S = a[1]
+        np.testing.assert_allclose(np.column_stack([res.design.to_gauge(c) for c in S.T]), S, rtol=0,
+                                   atol=1e-12)
+        assert S.shape[1] > 50 and np.abs(S).max() > 0.5
     for args, kw, match in (((-1e-7, u0), {}, "sigma_probe_m"), ((float("nan"), u0), {}, "sigma_probe_m"),
                             ((1e-7, np.zeros((12, 2))), {}, "u_cal_m"), ((1e-7, u0, (1e-4,)), {}, "u_place"),
                             ((1e-7, u0), {"step_m": 0.0}, "step_m"), ((1e-7, u0), {"z_min": float("nan")}, "z_min")):

@@ -208,9 +208,13 @@ def test_identify_records_the_machine_chain_and_height(identified):
     log, out = identified
     rec = json.loads(out.read_text())["estimate"]["identified_on"]
     lg = read_probe_log(log)
-    z = lg.col("Z_mm")[lg.ok & (np.abs(lg.col("nz")) <= 0.01)]
+    used = lg.ok & (np.abs(lg.col("nz")) <= 0.01)
+    z, t = lg.col("Z_mm")[used], lg.col("t_s")[used]
+    # the campaign's time span too (session 34, review33a F8); the simulated log has no temp_*_C sensor
+    assert not lg.temperature_columns() and t.max() > t.min() > -1
     assert rec == {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]", "probe_offsets_J_mm": None,
-                   "z_mm": [round(float(z.min()), 9), round(float(z.max()), 9)]}   # (rounded to 1e-9 mm)
+                   "z_mm": [round(float(z.min()), 9), round(float(z.max()), 9)],   # (rounded to 1e-9 mm)
+                   "t_s": [round(float(t.min()), 6), round(float(t.max()), 6)]}
     assert read_estimate(out).identified_on == rec                  # read back as written
 
 
