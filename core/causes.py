@@ -1582,7 +1582,7 @@ DEFECT_WIDTHS = (0.025, 0.05, 0.1, 0.2, 0.4)
 #: campaigns (gen_a every effect 1000-1009, local_scale_defect and part_change 1000-1099, periodic_axis_error and
 #: outlier 1000-1029, 16 narrow defects of 1100-1299; gen_b local_scale_defect and outlier 1000-1029): wrong -> right
 #: gen_a local_scale_defect 1121, 1246, 1299 (`periodic_axis_error?`), 1293 (`unexplained`) and gen_b outlier 1015
-#: (`local_scale_defect?` -> `outlier`), none right -> wrong, no workpiece check changed (docs/discovery.md
+#: (`local_scale_defect?` -> `outlier`), none right -> wrong, no workpiece check changed (docs/discovery-studies.md
 #: "Session 34: bumps narrower than the mean spacing"; the simulator and gen_c not measured). 2.0: the behaviour
 #: before.
 DEFECT_MIN_WIDTH_GAPS = 0.5

@@ -9020,7 +9020,7 @@ def _alternatives(bl, tm: Term, so: _State, sigma, settings, bases, signal: tupl
 #: check moved (8 findings hedged by the test were hedged already); on gen_a reseat_hysteresis 1005-1104 and gen_c
 #: clamp_creep 5-88 (184) one reading moved, right -> right: clamp_creep 68 `part_change` -> `part_change?`.
 #: ``"replace"`` would besides make 16 of those 320 right names confident (the ratios hedged them, the cause standing
-#: beyond every smooth), none wrong: not measured on outcomes, left to the lead. docs/discovery.md, "Session 34: the
+#: beyond every smooth), none wrong: not measured on outcomes, left to the lead. docs/discovery-studies.md, "Session 34: the
 #: alternatives gate as a two-way test, and an outlier finding's doubt carried back (alt34)".
 ALTERNATIVES_TWO_WAY = "add"
 
@@ -11020,7 +11020,7 @@ HEDGED_SHIFT_READING = "determined"
 #: effect 1000-1007; gen_c 0-7; the simulator 4000-4005) no name, confidence or estimate moved (by construction), the
 #: U95 moved on 3 (all gen_a feed_latency, out of the catalogue, a hedged periodic error of 5.6-6.8 mm: 1009 12.98 ->
 #: 15.33, 1144 9.42 -> 22.01, 1145 8.96 -> 23.18 um), workpiece checks failing 1 -> 0 (1145: 18.34 against 8.55 +
-#: 8.96, now + 23.18), none newly wider than three times its error. docs/discovery.md, "Session 34: a hedged fine
+#: 8.96, now + 23.18), none newly wider than three times its error. docs/discovery-studies.md, "Session 34: a hedged fine
 #: term's shift of the workpiece carried".
 FINE_SHIFT_CARRIED = True
 #: With :data:`FINE_SHIFT_CARRIED`: a fine term whose own significance holds beyond the smooth error map (its

@@ -7,7 +7,7 @@ Known answers on a made-up design (a cause that is there beside a smooth that re
 structure that the cause's columns only follow), the F statistics against explicit least squares, and the gate's
 verdicts through :func:`core.discover._alternatives`. :func:`core.discover._rejudged_beside_outlier_structure`
 (:data:`core.discover.OUTLIER_STRUCTURE_REJUDGED`) is checked on a made-up model and on a tuning campaign it mends
-(docs/discovery.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's doubt carried
+(docs/discovery-studies.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's doubt carried
 back (alt34)").
 """
 
@@ -180,7 +180,7 @@ def test_rejudged_beside_outlier_structure_hedges_a_cause_the_column_holds(monke
 
 
 # set C's two misses the rules were built for (spent blind seeds, read as the brief names them; the rules were judged
-# on tuning seeds: docs/discovery.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's
+# on tuning seeds: docs/discovery-studies.md, "Session 34: the alternatives gate as a two-way test, and an outlier finding's
 # doubt carried back (alt34)"). Each read with the rule off (the reading before) and on: the second shows that the
 # rule, not something else, makes the difference.
 

@@ -5,7 +5,7 @@ targets are apart (a periodic axis error's period, a local scale defect's half-w
 between neighbouring targets: :func:`core.discover._fine_hedged`) has the workpiece shift its own term makes tested
 against the reading without it and, where real, carried in the extended U95 (the machinery of
 :data:`core.discover.HEDGED_SHIFT_CARRIED`). Known answers on hand-built geometry and terms, and the campaigns that
-pin the rule. docs/discovery.md, "Session 34: a hedged fine term's shift of the workpiece carried".
+pin the rule. docs/discovery-studies.md, "Session 34: a hedged fine term's shift of the workpiece carried".
 """
 
 from types import SimpleNamespace

@@ -11,7 +11,7 @@ Two rules, each behind its own constant in :mod:`core.discover`:
   as much is judged again, that refusal waived, where the plainer cause fails its own tests in the same round
   (:func:`core.discover._counter_requeue`). Built for set C's gen_a probe_lobing 10304.
 
-Known answers of both helpers, and the campaigns before/after (docs/discovery.md, "Session 34: selection honesty").
+Known answers of both helpers, and the campaigns before/after (docs/discovery-studies.md, "Session 34: selection honesty").
 """
 
 from __future__ import annotations
