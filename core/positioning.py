@@ -1171,7 +1171,7 @@ def _deviation_check(log: PositioningLog, rows: np.ndarray, groups: np.ndarray, 
     """Refuse a valid reading whose deviation is beyond :data:`DEVIATION_WARN` and at least half the spacing
     of its target's neighbours (nearer another target than its own: a unit or typing slip, not an error of
     positioning); return the warnings for one beyond :data:`DEVIATION_WARN` only (row, value, count)."""
-    u, src = log.unit, log.source
+    u = log.unit
     dev = log.deviation[rows]
     warn = DEVIATION_WARN[u]
     gap = np.diff(targets)  # the targets sorted; each target's nearest neighbour's distance
