@@ -1719,7 +1719,8 @@ def _kinematics_of(res: VolumetricResult, nm: _ResidualNoise) -> dict:
 
 def _residual_noise(res: VolumetricResult, meas: list, sigma_probe_m: float, u_cal: np.ndarray, up: np.ndarray,
                     cal_map) -> _ResidualNoise:
-    """The residuals' first-order noise model, shared by :func:`lack_of_fit` and :func:`model_error_share`: the
+    """The residuals' first-order noise model, shared by :func:`lack_of_fit`, :func:`model_error_share` and
+    :func:`between_nodes_fit` (:func:`residual_noise`: once for the three): the
     residuals are ``(I - J K) e`` of the inputs' errors ``e``; the probing noise through each measurement's
     extraction gain, the bar calibration through its rods' map and the placements give their covariance. The bar
     calibration and the placements move the residuals along a few directions (the bar's 36 deviations, 6 per
