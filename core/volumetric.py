@@ -1676,11 +1676,51 @@ class _ResidualNoise:
     rp: np.ndarray      # r with the calibration/placement directions taken out
     Rp: np.ndarray      # R likewise
     Mp: np.ndarray      # Rp Sp Rp^T: what the probing noise alone leaves in rp
+    of: tuple = ()      # (res, measurements, sigma_probe_m, u_cal, u_place, cal_map) it was computed for
+    cache: dict = field(default_factory=dict, compare=False)  # _fine_kinematics, once for its users
+
+
+def residual_noise(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
+                   cal_map=None) -> _ResidualNoise:
+    """The residuals' first-order noise model (:func:`_residual_noise`), to compute once and pass as ``noise=``
+    to :func:`lack_of_fit`, :func:`model_error_share` and :func:`between_nodes_fit` with the same arguments
+    (each computes it otherwise: the same numbers; session 34, the MFB run computed it two or three times).
+
+    Raises
+    ------
+    ConfigError
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0.
+    """
+    u_cal, up = _noise_inputs("residual_noise", sigma_probe_m, u_cal_m, u_place)
+    return _residual_noise(res, list(meas), sigma_probe_m, u_cal, up, cal_map)
+
+
+def _noise_of(who: str, noise: _ResidualNoise | None, res: VolumetricResult, meas: list, sigma_probe_m: float,
+              u_cal: np.ndarray, up: np.ndarray, cal_map) -> _ResidualNoise:
+    """``noise`` (:func:`residual_noise`) when it was computed for these inputs, else refused by ``who``;
+    computed here when None."""
+    if noise is None:
+        return _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    o = noise.of
+    if not (len(o) == 6 and o[0] is res and len(o[1]) == len(meas) and all(a is b for a, b in zip(o[1], meas))
+            and o[2] == sigma_probe_m and np.array_equal(o[3], u_cal) and np.array_equal(o[4], up)
+            and o[5] is cal_map):
+        raise ConfigError(f"{who}: noise was computed for other inputs (residual_noise of the same result, "
+                          "measurements, sigma_probe_m, u_cal_m, u_place and cal_map)")
+    return noise
+
+
+def _kinematics_of(res: VolumetricResult, nm: _ResidualNoise) -> dict:
+    """:func:`_fine_kinematics` of ``nm``'s measurements, computed once for every user of ``nm``."""
+    if "kin" not in nm.cache:
+        nm.cache["kin"] = _fine_kinematics(res, nm.prep)
+    return nm.cache["kin"]
 
 
 def _residual_noise(res: VolumetricResult, meas: list, sigma_probe_m: float, u_cal: np.ndarray, up: np.ndarray,
                     cal_map) -> _ResidualNoise:
-    """The residuals' first-order noise model, shared by :func:`lack_of_fit` and :func:`model_error_share`: the
+    """The residuals' first-order noise model, shared by :func:`lack_of_fit`, :func:`model_error_share` and
+    :func:`between_nodes_fit` (:func:`residual_noise`: once for the three): the
     residuals are ``(I - J K) e`` of the inputs' errors ``e``; the probing noise through each measurement's
     extraction gain, the bar calibration through its rods' map and the placements give their covariance. The bar
     calibration and the placements move the residuals along a few directions (the bar's 36 deviations, 6 per
@@ -1712,11 +1752,12 @@ def _residual_noise(res: VolumetricResult, meas: list, sigma_probe_m: float, u_c
     U, sv, _ = np.linalg.svd(RLc, full_matrices=False)
     U = U[:, sv > sv[0] * 1e-9] if len(sv) and sv[0] > 0 else U[:, :0]
     Rp = R - U @ (U.T @ R)
-    return _ResidualNoise(prep, r, R, Sp, RLc, r - U @ (U.T @ r), Rp, Rp @ Sp @ Rp.T)
+    return _ResidualNoise(prep, r, R, Sp, RLc, r - U @ (U.T @ r), Rp, Rp @ Sp @ Rp.T,
+                          (res, tuple(meas), sigma_probe_m, u_cal, up, cal_map))
 
 
 def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
-                cal_map=None) -> LackOfFit | None:
+                cal_map=None, noise: _ResidualNoise | None = None) -> LackOfFit | None:
     """Lack-of-fit test of an MFB identification: its residuals against the probing noise and the other inputs.
 
     The residuals ``r`` of (1) at the solution (``res`` as identified, :func:`identify_volumetric`) are, to
@@ -1733,17 +1774,18 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
     expectation of ``r.r``), for the MFB's correlated inputs.
 
     Returns None when the inputs leave no residual variance (noise-free and nothing drawn: nothing to
-    test against).
+    test against). ``noise``: :func:`residual_noise` of the same arguments (computed here when None).
 
     Raises
     ------
     ConfigError
-        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0.
+        ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
+        ``noise`` computed for other inputs.
     """
     from scipy.stats import chi2
 
     u_cal, up = _noise_inputs("lack_of_fit", sigma_probe_m, u_cal_m, u_place)
-    nm = _residual_noise(res, list(meas), sigma_probe_m, u_cal, up, cal_map)
+    nm = _noise_of("lack_of_fit", noise, res, list(meas), sigma_probe_m, u_cal, up, cal_map)
     r, R, Sp, RLc, rp, Mp = nm.r, nm.R, nm.Sp, nm.RLc, nm.rp, nm.Mp
     t_all = float(np.sum((R @ Sp) * R) + np.sum(RLc * RLc))  # tr M
     t1, t2 = float(np.trace(Mp)), float(np.sum(Mp * Mp))
@@ -1831,13 +1873,14 @@ def _fine_kinematics(res: VolumetricResult, prep) -> dict:
 
 
 def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None,
-               centres: bool = False):
+               centres: bool = False, values: bool = True):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
     positions the touches and the nodes span) as the rows of (1) see it (as :func:`ripple_columns` carries a
     function of the axis position: each touch's sensitivity along its approach, the extraction's gain, the
     shifted holes without z_A), and its values at ``symbol``'s nodes in the design's gauge. ``kin``:
     :func:`_fine_kinematics` of ``prep`` (computed here when not given); ``centres``: also the hat functions'
-    centres (f,) m, axis positions (a third value)."""
+    centres (f,) m, axis positions (a third value); ``values`` False: S is None (not computed: a caller that
+    does not use it, :func:`between_nodes_fit`)."""
     ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
     d = res.design
     x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
@@ -1872,16 +1915,18 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
         dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
         Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
         r0 += 3 * k
-    S = np.zeros((len(d.names), f + 1))
-    S[d.slices[symbol]] = hat(x_n)
-    if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
+    S = np.zeros((len(d.names), f + 1)) if values else None
+    if values:
+        S[d.slices[symbol]] = hat(x_n)
+    if values and d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
         S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
     return (Phi, S, lo + h * np.arange(f + 1)) if centres else (Phi, S)
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                       cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
-                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True) -> ModelErrorShare | None:
+                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True,
+                      noise: _ResidualNoise | None = None) -> ModelErrorShare | None:
     """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
 
     :func:`core.uncertainty.model_error_budget`'s way for the MFB's correlated inputs: each motion table
@@ -1903,13 +1948,14 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     (None; about half the function's CPU, 18 numerical integrations), for a caller that keeps only the
     columns (the budget study's runs, :func:`scenarios.mfb.budget_run`); the shares are the same.
 
-    Returns None when there is no probing noise to test against (``sigma_probe_m`` 0).
+    Returns None when there is no probing noise to test against (``sigma_probe_m`` 0). ``noise``:
+    :func:`residual_noise` of the same arguments (computed here when None).
 
     Raises
     ------
     ConfigError
         ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
-        ``step_m`` not > 0; ``z_min`` not finite.
+        ``step_m`` not > 0; ``z_min`` not finite; ``noise`` computed for other inputs.
     """
     from scipy.optimize import nnls
 
@@ -1923,10 +1969,10 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     if sigma_probe_m == 0:
         return None
     meas = list(meas)
-    nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    nm = _noise_of("model_error_share", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
-    kin = _fine_kinematics(res, prep)
+    kin = _kinematics_of(res, nm)
     fine = [_fine_rows(res, meas, prep, s, step_m, kin) for s in syms]
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
     # every W_T lies in Rp's column space (an orthonormal Q, one SVD): each W_T's SVD is Q times that of the
@@ -2015,7 +2061,8 @@ class BetweenNodes:
 
 
 def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
-                      cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M) -> BetweenNodes | None:
+                      cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
+                      noise: _ResidualNoise | None = None) -> BetweenNodes | None:
     """Between-node test of an MFB identification (review33a F5): does a table miss structure between two of
     its nodes, where the map follows the tables' interpolation and the U95 (of the node values) says nothing?
 
@@ -2031,12 +2078,13 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     (Bonferroni) against :data:`BETWEEN_NODES_P`.
 
     Returns None when there is no probing noise (``sigma_probe_m`` 0) or no interval the touches see.
+    ``noise``: :func:`residual_noise` of the same arguments (computed here when None).
 
     Raises
     ------
     ConfigError
         ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
-        ``step_m`` not > 0.
+        ``step_m`` not > 0; ``noise`` computed for other inputs.
     """
     from scipy.stats import chi2
 
@@ -2048,16 +2096,16 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     if sigma_probe_m == 0:
         return None
     meas = list(meas)
-    nm = _residual_noise(res, meas, sigma_probe_m, u_cal, up, cal_map)
+    nm = _noise_of("between_nodes_fit", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
-    kin = _fine_kinematics(res, prep)
+    kin = _kinematics_of(res, nm)
     d = res.design
     rows = []  # (p Satterthwaite, symbol, (x0, x1), q, A)
     for s in MOTION:
         x_n = np.asarray(d.nodes[iso.symbol(s).axis], float)
         if len(x_n) < 2:
             continue
-        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True)
+        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True, values=False)
         RPhi = Rp @ Phi
         for x0, x1 in zip(x_n[:-1], x_n[1:]):
             cols = (c > x0 + 1e-9) & (c < x1 - 1e-9)

@@ -1715,12 +1715,13 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     # the residuals' model-error share (review29b F2b): per motion table a fine table the residuals show the
     # tables miss (z > 3 over the probing noise), propagated into the node values and the U95
     u_cal_fit = u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal)
-    lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit,
-                          np.asarray(u_place, float) if draw else None, cal_map=cal_map)
+    u_place_fit = np.asarray(u_place, float) if draw else None
+    # the residuals' noise model once for the three tests below (it was computed by each: session 34, bn34)
+    noise = vol.residual_noise(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map)
+    lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
     opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
-    share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit,
-                                   np.asarray(u_place, float) if draw else None, cal_map=cal_map,
-                                   exact_p=model_error_held)
+    share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map,
+                                   exact_p=model_error_held, noise=noise)
              if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
     # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
     # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model
@@ -1800,8 +1801,8 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         if not lof.fits:
             doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
     # between two nodes of a table (review33a F5): a local error the whole-residual test dilutes
-    bn = (vol.between_nodes_fit(res_g, meas, probe.sigma_m, u_cal_fit, np.asarray(u_place, float) if draw else None,
-                                cal_map=cal_map) if MFB_BETWEEN_NODES and noisy else None)
+    bn = (vol.between_nodes_fit(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
+          if MFB_BETWEEN_NODES and noisy else None)
     if bn is not None:
         doc["between_nodes"] = bn.as_dict()
         if not bn.fits:

@@ -435,3 +435,39 @@ def test_exact_extraction_bad_input(meas3):
         vol.identify_volumetric([replace(m0, feature=other)] + list(meas[1:]), chain, nodes, rp, extraction=True)
     with pytest.raises(ConfigError, match="extraction must be True, False or None"):
         vol.identify_volumetric(meas, chain, nodes, rp, extraction="yes")
+
+
+def test_residual_noise_shared_gives_each_test_its_own_figures_and_is_refused_for_other_inputs(meas3):
+    # session 34 (bn34): the MFB run computes the residuals' noise model once (residual_noise) and passes it to
+    # lack_of_fit, model_error_share and between_nodes_fit, which computed it each. The same figures, bit for
+    # bit (the same numbers, only not computed twice): checked against each test's own computation, against a
+    # 1 pm probe (the residuals far beyond it: every test says something: p ~ 0, shares enter, a note).
+    meas, chain, nodes, rp = meas3
+    res = vol.identify_volumetric(meas, chain, nodes, rp)
+    u0, up = np.zeros((12, 3)), np.full(6, 1e-6)
+    nm = vol.residual_noise(res, meas, 1e-12, u0, up)
+    lof, lof_own = vol.lack_of_fit(res, meas, 1e-12, u0, up, noise=nm), vol.lack_of_fit(res, meas, 1e-12, u0, up)
+    assert lof == lof_own and not lof.fits
+    sh, sh_own = (vol.model_error_share(res, meas, 1e-12, u0, up, noise=nm),
+                  vol.model_error_share(res, meas, 1e-12, u0, up))
+    assert sh.entered and sh.entered == sh_own.entered and sh.z == sh_own.z and sh.p == sh_own.p
+    assert np.array_equal(sh.columns, sh_own.columns)
+    bn, bn_own = (vol.between_nodes_fit(res, meas, 1e-12, u0, up, noise=nm),
+                  vol.between_nodes_fit(res, meas, 1e-12, u0, up))
+    assert bn == bn_own and not bn.fits
+    assert "kin" in nm.cache   # the fine kinematics computed once, for the share and the between-node test
+    # the fine rows without the node values (what the between-node test uses): the same rows and centres
+    for s in ("EXX", "EBZ"):
+        a = vol._fine_rows(res, meas, nm.prep, s, 1e-3, nm.cache["kin"], centres=True)
+        b = vol._fine_rows(res, meas, nm.prep, s, 1e-3, nm.cache["kin"], centres=True, values=False)
+        assert b[1] is None and np.array_equal(a[0], b[0]) and np.array_equal(a[2], b[2])
+    # a noise model of other inputs is refused by the test's name, whichever input differs
+    for who, f in (("lack_of_fit", vol.lack_of_fit), ("model_error_share", vol.model_error_share),
+                   ("between_nodes_fit", vol.between_nodes_fit)):
+        for args, kw in (((meas, 2e-12, u0, up), {}), ((meas, 1e-12, u0 + 1e-7, up), {}),
+                         ((meas, 1e-12, u0, None), {}), ((meas[:-1], 1e-12, u0, up), {}),
+                         ((meas, 1e-12, u0, up), {"cal_map": np.eye(36)})):
+            with pytest.raises(ConfigError, match=f"{who}: noise was computed for other inputs"):
+                f(res, *args, noise=nm, **kw)
+    with pytest.raises(ConfigError, match="residual_noise: sigma_probe_m"):
+        vol.residual_noise(res, meas, -1e-7, u0)
