@@ -14,8 +14,9 @@ out)::
     python -m scenarios.mfb_fit_study realistic 0 40 OUT.jsonl
     python -m scenarios.mfb_fit_study --tally OUT.jsonl ...
 
-``--share`` turns the model-error share on (:data:`scenarios.mfb.MFB_MODEL_ERROR_SHARE`, OFF by default);
-the tally then reports its entries and the U95's growth.
+``--share`` turns the model-error share on (:data:`scenarios.mfb.MFB_MODEL_ERROR_SHARE`, on by default since
+session 34: the flag then changes nothing; kept so the session 29-30 commands run as written); the tally
+reports its entries and the U95's growth.
 
 About 7 s per run.
 """
@@ -121,7 +122,7 @@ def tally(paths) -> str:
 
 def main(argv=None) -> int:
     a = list(sys.argv[1:] if argv is None else argv)
-    if "--share" in a:  # the model-error share in the U95 (scenarios.mfb.MFB_MODEL_ERROR_SHARE, OFF by default)
+    if "--share" in a:  # the model-error share in the U95 (scenarios.mfb.MFB_MODEL_ERROR_SHARE, on since session 34)
         import scenarios.mfb
 
         a.remove("--share")

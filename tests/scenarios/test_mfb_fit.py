@@ -16,12 +16,12 @@ def test_note_fires_on_a_short_wave_truth_and_not_on_the_realistic_machine(tmp_p
     The model-error share (review29b F2b, mfbu29): on the short-wave truth the note fires, so the tables
     whose residual statistic is past z = 3 enter the U95 (114 of 120 free nodes within it, from 101); on the
     realistic seed none is past z = 3 and the note does not fire (no share, the U95 as before). Without the
-    share (MFB_MODEL_ERROR_SHARE False, the default until the stored budget studies are made again) the first
-    run has no ``model_error`` and the count is 101."""
+    share (MFB_MODEL_ERROR_SHARE False, the default until session 34 made the stored budget studies again with
+    it) the first run has no ``model_error`` and the count is 101."""
     import scenarios.mfb
     from scenarios.cli import main
 
-    monkeypatch.setattr(scenarios.mfb, "MFB_MODEL_ERROR_SHARE", True)  # OFF by default (its docstring)
+    monkeypatch.setattr(scenarios.mfb, "MFB_MODEL_ERROR_SHARE", True)  # the default since session 34; pinned here
     from scenarios.mfb_fit_study import BANDS, truth_toml
 
     toml = tmp_path / "short0.toml"
