@@ -76,7 +76,8 @@ from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
 from .probelog import (COMMENT_AFTER_HEADER, OK_CELLS, T_MAX_S, TEMP_RANGE_C, _comment_row, _num, add_meta,
                        csv_lines, is_number, last_row_check, ok_statuses, step_back, value_range)
-from .probelog import NUMBER_FORMAT_KEY, most_decimals, number_format_value, parse_number_format, step_decimals
+from .probelog import (NUMBER_FORMAT_KEY, WRITE_ON_STEP_RTOL_POSITIONING, most_decimals, number_format_value, on_step,
+                       parse_number_format, step_decimals)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -528,7 +529,8 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
             continue
         extra[h] = numbers(h, allow_empty=True) if _is_temp(h) else np.array(col[h], dtype=object)
     steps = _column_steps(meta, header, {"target": (tname, col[tname]),
-                                         "measured": (mname, [c for c, o in zip(col[mname], ok) if o])}, src)
+                                         "measured": (mname, [c for c, o in zip(col[mname], ok) if o])}, src,
+                          whole={tname: col[tname], mname: col[mname]}, where=where)
     log = PositioningLog(meta=meta, target=target, cycle=cyc.astype(np.int64), direction=direction,
                          measured=measured, t_s=t_s, status=status, extra=extra, source=src, warnings=warnings,
                          lines=np.asarray(line_of_row, dtype=np.int64), text_steps=steps)
@@ -537,12 +539,18 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
 
 
 def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str, list]], src: str,
-                  scale: Mapping[str, float] | None = None) -> dict:
+                  scale: Mapping[str, float] | None = None, whole: Mapping[str, list] | None = None,
+                  where=None) -> dict:
     """:attr:`PositioningLog.text_steps` of the columns ``cells`` (key -> (column name, its cells' text)): the
     step of each column's most decimals, or what the metadata ``number_format`` declares (the probe log's line,
     :func:`core.probelog.parse_number_format`: vmt's words say the numbers are exact, ``decimals NAME=K`` a
     column printed to K decimals). ``scale``: key -> factor from the column's unit to the file unit (a table's
-    ``deviation_um``: 1e-3)."""
+    ``deviation_um``: 1e-3).
+
+    A column declared to K decimals is held to it as the probe log's reader holds its columns (session 35,
+    iso34's leftover): a cell of ``whole`` (column name -> every row's text, status aside) written with more
+    decimals than K is refused, one line naming the row (``where(r)``), since the line would claim a step the
+    number does not have (before, the step was taken from the line and such a cell read silently)."""
     declared = meta.get(NUMBER_FORMAT_KEY)
     exact, fixed = False, {}
     if declared is not None:
@@ -557,6 +565,7 @@ def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str
         k = (scale or {}).get(key, 1.0)
         if name in fixed:
             out[key] = k * 10.0 ** -fixed[name]
+            _held_to_declared(name, (whole or {}).get(name, ()), fixed[name], where)
         elif exact:
             out[key] = 0.0
         else:
@@ -564,6 +573,20 @@ def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str
             if d is not None:
                 out[key] = k * 10.0 ** -d
     return out
+
+
+def _held_to_declared(name: str, text, decimals: int, where) -> None:
+    """Refuse the first cell of ``text`` (a column's cells, row by row) written with more decimals than the
+    ``decimals`` the ``number_format`` line declares for column ``name`` (the probe log reader's rule and
+    words); ``where(r)`` names row ``r``."""
+    k = most_decimals(text) if len(text) else None
+    if k is None or k <= decimals:
+        return
+    r = next(i for i, c in enumerate(text) if (most_decimals([c]) or 0) > decimals)
+    at = where(r) if where is not None else f"row {r}"
+    raise PositioningLogError(
+        f"{at}: column {name!r}: {text[r].strip()[:40]!r} has more decimals than the {decimals} the metadata "
+        f"{NUMBER_FORMAT_KEY} declares for the column: correct the line (or the number)")
 
 
 #: Axis letters of ISO 841: the linear axes (a positioning log of one in mm) and the rotary axes (in deg).
@@ -731,9 +754,7 @@ def _written_decimals(log: PositioningLog) -> dict | None:
         d = step_decimals(log.text_steps.get(key))
         if d is None:
             continue
-        x = np.asarray(v, float)
-        x = x[np.isfinite(x)]
-        if x.size and np.max(np.abs(np.round(x, d) - x)) > 1e-6 * 10.0 ** -d:
+        if not on_step(v, d, WRITE_ON_STEP_RTOL_POSITIONING):   # (a computed column's float noise held: there)
             return None
         fixed[name] = d
     return fixed

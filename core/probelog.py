@@ -1298,10 +1298,39 @@ def fixed_decimals(log: ProbeLog) -> dict[str, int]:
     for k in _ordered(dict(log.columns)):
         d = step_decimals(log.text_steps.get(k))
         if d is not None and not _is_text_column(k, log.columns[k]) and not any(ch in k for ch in ",=;"):
-            v = np.asarray(log.columns[k], float)
-            if np.array_equal(np.round(v, d), v, equal_nan=True):
+            if on_step(log.columns[k], d, WRITE_ON_STEP_RTOL_PROBE):
                 out[k] = d  # (a name the line cannot hold, ``a;b``, is written whole: exact)
     return out
+
+
+#: :func:`on_step`'s tolerance for the probe log's writer (:func:`fixed_decimals`), in steps: none. Its columns
+#: of a step hold the numbers as read (a controller's print, a file's digits), each the nearest double to a
+#: ``K``-decimal number, on which ``round(v, K) == v`` holds exactly; a value code changed after reading (a
+#: correction of any size) must be written whole, so no tolerance may round a change back onto the step.
+WRITE_ON_STEP_RTOL_PROBE = 0.0
+#: :func:`on_step`'s tolerance for the positioning log's writer (``core.positioning._written_decimals``), in
+#: steps: 1e-6. A table's measured column is computed, target + deviation (``405.771`` + ``2.5 um`` x 1e-3), and
+#: carries the sum's rounding, off the nearest double of its K-decimal value by up to 1.1e-13 mm (20,000 sums of
+#: a 3-decimal target within +-1000 mm and a 0.1 um deviation: a quarter off, the worst 1.14e-13 mm): exactness
+#: would drop the line and write 17 digits. 1e-6 of the step holds that noise for every step of 1e-6 mm and
+#: coarser (1e-12 mm) and rounds off no change a reading could carry (1 pm at a 1 um step).
+WRITE_ON_STEP_RTOL_POSITIONING = 1e-6
+
+
+def on_step(values, decimals: int, rtol: float = 0.0) -> bool:
+    """Whether every finite value lies on the step ``10^-decimals``: ``|round(v, decimals) - v|`` at most
+    ``rtol`` steps (``rtol`` 0: exactly, ``round(v, K) == v``, which holds for the nearest double to any
+    ``K``-decimal number up to 2^53 x 10^-K). NaN and infinities are left out (an empty cell, a value the text
+    writes whole); no finite value: True. The writers' question (:func:`fixed_decimals`,
+    ``core.positioning._written_decimals``): may this column be written to ``decimals`` decimals and declared
+    so without moving a value? Each caller states its ``rtol`` (:data:`WRITE_ON_STEP_RTOL_PROBE`,
+    :data:`WRITE_ON_STEP_RTOL_POSITIONING`)."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if not x.size:
+        return True
+    dev = np.abs(np.round(x, decimals) - x)
+    return bool(np.all(dev == 0.0)) if rtol == 0.0 else bool(np.max(dev) <= rtol * 10.0 ** -decimals)
 
 
 def step_decimals(q: float | None) -> int | None:

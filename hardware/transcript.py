@@ -17,8 +17,14 @@ Reports are read as millimetres. GRBL reports inches, ``[PRB:...]`` too,
 when its setting ``$13`` (report inches) is 1: a transcript that shows
 ``$13=1`` (its ``$$`` dump, or the setting sent) before a probe report is
 refused naming both lines, as ``vmt probe`` refuses such a controller; a
-later ``$13=0`` ends it. A transcript without ``$13`` is read as mm (most
-senders' logs hold no settings dump).
+later ``$13=0`` ends it. Most senders' logs hold no settings dump: then the
+report's own print says the units. GRBL prints every position with a fixed
+number of decimals, 3 in mm and 4 in inches (``printFloat_CoordValue``,
+report.c; ``N_DECIMAL_COORDVALUE_MM`` / ``_INCH``, config.h; grblHAL the
+same), so a report whose X, Y and Z all print 4 decimals, with no ``$13``
+before it, is refused as inches, naming its line; a ``$13=0`` before it
+(the ``$$`` answer kept in the transcript) says mm, for a firmware built
+to print mm to 4 decimals. Any other print is read as mm, as before.
 
 Timestamps, when lines carry them, give ``t_s`` (seconds since the first
 timestamp): a leading number of seconds (``12.345 < [PRB:...]``, what
@@ -57,7 +63,7 @@ import numpy as np
 from core.atomic import head_problem, input_problem
 from core.exceptions import PlanError, ProbeLogError, counted
 from core.probelog import ALIGN_ALONG_MM as _ALIGN_ALONG_MM, ALIGN_LATERAL_MM as _ALIGN_LATERAL_MM
-from core.probelog import ProbeLog, csv_lines
+from core.probelog import ProbeLog, csv_lines, most_decimals
 
 from .campaign import log_from_plan
 from .grbl import parse_prb
@@ -79,6 +85,9 @@ _AXIS_WORDS = re.compile(r"([XYZ])\s*([-+]?(?:\d+\.?\d*|\.\d+))", re.I)
 #: ``$13=1`` every report, ``[PRB:...]`` too (report_probe_parameters prints with
 #: printFloat_CoordValue), is in inches.
 _REPORT_INCHES = re.compile(r"^\$13\s*=\s*([^\s(]*)")
+#: The decimals GRBL prints a position with in inches (``N_DECIMAL_COORDVALUE_INCH``, config.h; in mm
+#: ``N_DECIMAL_COORDVALUE_MM`` = 3): ``printFloat`` writes exactly that many, trailing zeros kept.
+GRBL_INCH_DECIMALS = 4
 
 
 def _stamp_decimals(line: str) -> int:
@@ -187,6 +196,7 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
     stamp_decimals = 0    # the most decimals a timestamp prints: t_s is exact to them (review34)
     prev_info = False
     inch_reports = None     # (line, value, numeric) of a $13 that makes the reports after it inches
+    mm_stated = None        # line of a $13=0 (the reports after it are mm whatever they print)
     ln = 0
     for ln, line in enumerate(csv_lines(text), start=1):
         ts = _stamp(line)
@@ -212,8 +222,10 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         if m13:
             try:
                 inch_reports = (ln, m13.group(1), True) if float(m13.group(1)) != 0 else None
+                mm_stated = ln if inch_reports is None else None
             except ValueError:
                 inch_reports = (ln, m13.group(1), False)   # not a number: the units unknown (the live client's word)
+                mm_stated = None
         if way != "<" and not body.startswith("["):
             u = _UNITS.findall(body)
             if u:
@@ -243,8 +255,16 @@ def read_session(path, *, stopped_at_first: bool = False) -> Session:
         r = parse_prb(tok.group(0))
         if r is None:
             raise ProbeLogError(f"{p}: line {ln}: malformed probe report {tok.group(0)[:60]!r}")
+        xyz_text = tok.group(0)[5:].split(":")[0].split(",")[:3]
+        if mm_stated is None and all(most_decimals([v]) == GRBL_INCH_DECIMALS for v in xyz_text):
+            raise ProbeLogError(
+                f"{p}: line {ln}: the probe report prints {GRBL_INCH_DECIMALS} decimals, as GRBL prints inches "
+                f"($13=1, report inches; mm it prints to 3) and the transcript shows no $13 before it: vmt reads "
+                "reports as millimetres and converts no controller's units: set $13=0 (send '$13=0') and probe "
+                "again; a controller that reports mm to 4 decimals: keep its '$$' answer ($13=0) in the "
+                "transcript before the reports")
         pos.append(r[0][:3])
-        printed.append(tok.group(0)[5:].split(":")[0].split(",")[:3])
+        printed.append(xyz_text)
         touched.append(r[1])
         stamps.append(ts)
         where.append(ln)

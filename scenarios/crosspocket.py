@@ -1365,7 +1365,8 @@ def _case1_figures(t, res, res0, P, N, pocket, ref_um, machine) -> dict:
                                           true_centre_um=true_c_centre_um(machine, res, z),
                                           u95_exc_um=2 * res.std[res.design.slices["EXC"]] / UM,
                                           u95_eyc_um=2 * res.std[res.design.slices["EYC"]] / UM,
-                                          title="Fig. 13: C-axis centre trajectory, with spheres")
+                                          title="Fig. 13: C-axis centre trajectory, with spheres",
+                                          chain=machine.chain)
     return out
 
 

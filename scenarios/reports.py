@@ -458,6 +458,8 @@ class _DemoView:
     true_centre: np.ndarray | None = None
     map_u95: np.ndarray | None = None
     map_cover: dict | None = None
+    #: the log's kinematic chain (identify's ``identified_on``): what carries C, which the centre's label names
+    chain: str | None = None
 
     @classmethod
     def of(cls, t, res, ident: dict, machine=None) -> "_DemoView":
@@ -475,7 +477,8 @@ class _DemoView:
         c_deg = np.degrees(res.design.c_rad)
         return cls(x_mm, y_mm, ex_um, ey_um, tex, tey, idx, t.w_A[idx, :2] / MM, t.wn_A[idx, :2], res.G / UM, u95,
                    c_deg, res.EXC / UM, res.EYC / UM, c_axis_centre_um(res), true_centre, error_map_u95_um(res),
-                   map_u95_coverage(res, x_mm, y_mm, ex_um, ey_um, tex, tey))
+                   map_u95_coverage(res, x_mm, y_mm, ex_um, ey_um, tex, tey),
+                   ((ident.get("estimate") or {}).get("identified_on") or {}).get("chain"))
 
 
 def _table_poses(t, machine) -> list | None:
@@ -552,7 +555,7 @@ def _record_demo(rec, record, v: _DemoView, t, res, ident: dict, art, machine=No
     TA = np.asarray(art.T_W_A, float)
     record.log_workpiece(rec, t.w_A[v.idx] @ TA[:3, :3].T + TA[:3, 3], t.wn_A[v.idx] @ TA[:3, :3].T,
                          workpiece_form(v.g_um, v.w_mm * MM, v.wn), u95_um=v.u95_um, label="form")
-    record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre)
+    record.log_rotary(rec, v.c_deg, v.exc, v.eyc, ecc_urad=res.ECC / URAD, centre_um=v.centre, chain=v.chain)
     record.log_error_motions(rec, {k: e for k, e in ident["axes"].items() if k != "EC0Y"})
 
 
@@ -606,7 +609,7 @@ def _demo_sections(figures, v: _DemoView, t, res, ident: dict, g_true, art=None)
                                 ident["axes"]["EC0Y"]["u95_urad"]]])]),
         Section("C axis (Fig. 13)", text=C_AXIS_TEXT + (C_AXIS_TRUTH_TEXT if v.true_centre is not None else ""),
                 figures={"c_axis": figures.rotary_centre_figure(v.c_deg, v.exc, v.eyc, centre_um=v.centre,
-                                                                true_centre_um=v.true_centre)}),
+                                                                true_centre_um=v.true_centre, chain=v.chain)}),
         Section("Workpiece uncertainty (Figs. 18-19)", figures={"workpiece_u95": _u95_outline_figure(v, art)}),
     ]
 

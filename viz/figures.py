@@ -324,7 +324,13 @@ def line_from_centre(centre_um) -> np.ndarray:
     return -np.asarray(centre_um, float) + 0.0
 
 
-def centre_label(cx: float, cy: float, axis: str = "C") -> str:
+#: What a rotary carrier's errors add to the line of the axis it carries, in words, per carrier (the terms
+#: :func:`core.selfcal.c_centre_note` writes out; the line is minus the centre): A's EY0A in Y and EB0A times the
+#: height above A's line in X; B's EX0B in X and EA0B times the height in Y.
+_CARRIER_WORDS = {"A": "EY0A, EB0A (z - z_A), ...", "B": "EX0B, EA0B (z - z_B), ..."}
+
+
+def centre_label(cx: float, cy: float, axis: str = "C", chain=None) -> str:
     """Legend of a rotary axis's fitted centre ``(cx, cy)`` µm: the centre and the axis line it places.
 
     The trajectory is the tool relative to the part, so the line sits at minus
@@ -332,14 +338,43 @@ def centre_label(cx: float, cy: float, axis: str = "C") -> str:
     (eqs 16-17): with the linear axes' error folded in, seen from the tool at
     the grid origin when the axis is on it (elsewhere the gauge's rotation
     and scale, fixed at the grid's last nodes, mix in too).
+
+    What the line is depends on what carries the axis (``chain``: the log's
+    ``kinematic_chain`` text or a parsed chain): on the bed it is the axis's
+    own location ``(EX0C, EY0C)``; on an axis carried by A or B, whose
+    location errors are relative to its carrier (CONTRIBUTING.md, "Error
+    conventions"), it is those plus what the carrier's location errors and
+    error motions add (:func:`core.selfcal.c_centre_note`; the nmv3000's C
+    rides on A: EY0A = 10 µm alone puts the line at (0, 10) µm with EX0C =
+    EY0C = 0), and the label says so, naming the carrier. Carried by another
+    axis, or with no chain (None), it says the line is ``(EX0C, EY0C)`` only
+    on a bed axis (session 35: the label claimed ``(EX0C, EY0C)`` whatever
+    carried the axis).
     """
     a = axis.upper()
     lx, ly = line_from_centre((cx, cy))
-    return f"centre ({cx:.1f}, {cy:.1f}) µm:\n(EX0{a}, EY0{a}) = ({lx:.1f}, {ly:.1f}) µm\nin the gauge of eqs 16-17"
+    head = f"centre ({cx:.1f}, {cy:.1f}) µm:\n"
+    gauge = "in the gauge of eqs 16-17"
+    carrier, known = None, False
+    if chain is not None:
+        from core.chain import parse_chain
+
+        ch = parse_chain(chain) if isinstance(chain, str) else chain
+        if a in ch.axes:
+            carrier, known = ch.parent(a), True
+    if known and carrier is None:
+        return head + f"(EX0{a}, EY0{a}) = ({lx:.1f}, {ly:.1f}) µm\n{gauge}"
+    if carrier in _CARRIER_WORDS:
+        return (head + f"{a} carried by {carrier}: its line ({lx:.1f}, {ly:.1f}) µm\n= (EX0{a}, EY0{a}) + what "
+                f"{carrier} adds\n({_CARRIER_WORDS[carrier]}), {gauge}")
+    why = f"{a} carried by {carrier}" if carrier is not None else "chain unknown"
+    return (head + f"{a} line ({lx:.1f}, {ly:.1f}) µm: (EX0{a}, EY0{a})\nif {a} sits on the bed ({why}; "
+            f"carried,\nplus its carrier's errors), {gauge}")
 
 
 def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_um=None,
-                         u95_exc_um=None, u95_eyc_um=None, axis: str = "C", title: str | None = None):
+                         u95_exc_um=None, u95_eyc_um=None, axis: str = "C", title: str | None = None,
+                         chain=None):
     """Trajectory of the rotary axis's centre, ``(EXC(C), EYC(C))`` (Fig. 13).
 
     Parameters
@@ -360,6 +395,9 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_u
         The truth's centre in the same gauge (a simulation), drawn beside it.
     u95_exc_um, u95_eyc_um : (n,) float, optional
         Expanded uncertainties (k = 2), drawn as error bars.
+    chain : str or Chain, optional
+        The machine's kinematic chain (the log's ``kinematic_chain``): what
+        carries the axis, which the centre's label names (:func:`centre_label`).
     """
     a = axis.upper()
     c = _arr("c_deg", c_deg, (-1,))
@@ -380,7 +418,7 @@ def rotary_centre_figure(c_deg, exc_um, eyc_um, *, centre_um=None, true_centre_u
     ax.plot([0], [0], "+", color="k", ms=10, label="no error")
     if centre_um is not None:
         cx, cy = _arr("centre_um", centre_um, (2,))
-        ax.plot([cx], [cy], "x", color=_C_BAD, ms=10, mew=2, label=centre_label(cx, cy, a))
+        ax.plot([cx], [cy], "x", color=_C_BAD, ms=10, mew=2, label=centre_label(cx, cy, a, chain))
     if true_centre_um is not None:
         tx, ty = _arr("true_centre_um", true_centre_um, (2,))
         ax.plot([tx], [ty], "*", color=_C_TRUE, ms=12,

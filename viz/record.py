@@ -448,7 +448,7 @@ def log_error_motions(rec, axes: Mapping[str, Mapping], *, truth: Mapping | None
 
 
 def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
-               u95_eyc_um=None, u95_ecc_urad=None, centre_um=None, axis: str = "C") -> None:
+               u95_eyc_um=None, u95_ecc_urad=None, centre_um=None, axis: str = "C", chain=None) -> None:
     """Log the rotary-axis error motions and the trajectory of its centre.
 
     ``rotary/<axis>/centre_trajectory`` is the self-calibration paper's
@@ -469,6 +469,9 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
         Angular positioning error ``ECC(C)``, µrad.
     u95_* : (n,) float, optional
         Expanded uncertainties (k = 2), same units.
+    chain : str or Chain, optional
+        The machine's kinematic chain: what carries the axis, which the
+        centre's label names (:func:`viz.figures.centre_label`).
     """
     import rerun as rr
 
@@ -488,7 +491,7 @@ def log_rotary(rec, c_deg, exc_um, eyc_um, *, ecc_urad=None, u95_exc_um=None,
 
         cx, cy = _arr("centre_um", centre_um, (2,))
         rec.log(f"{base}/centre", rr.Points2D([[float(cx), float(cy)]], colors=[_RED], radii=[0.5],
-                                              labels=[centre_label(cx, cy, a).replace("\n", " ")]), static=True)
+                                              labels=[centre_label(cx, cy, a, chain).replace("\n", " ")]), static=True)
     timeline = f"{a}_mdeg"
     ticks = np.round(c * 1000.0).astype(np.int64)
     series = [(f"EX{a}", ex, u95_exc_um, "µm"), (f"EY{a}", ey, u95_eyc_um, "µm")]

@@ -15,7 +15,7 @@ trigger and one servo period of travel beyond it:
 (0.5 nm per axis), and so has the program's path (vmt machine program), hence
 the 1 nm slack on each below.
 
-Never skipped: without LinuxCNC the test fails (the make target installs it).
+Never skipped: without LinuxCNC every test fails (tests/controllers/conftest.py; the make target installs it).
 """
 
 import json

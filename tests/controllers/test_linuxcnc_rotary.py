@@ -1,6 +1,7 @@
 """Real LinuxCNC closes the loop on rotary axes with vmt's rotary compensation files.
 
-``make test-controllers`` (not ``make test``). The chain, end to end:
+``make test-controllers`` (not ``make test``); never skipped: without LinuxCNC every test fails
+(tests/controllers/conftest.py). The chain, end to end:
 
 1. Truth: the nmv3000 (X Y Z A C) with one error, C's angular positioning error
    ``ECC(theta)`` (a first and a second harmonic and a constant, periodic in the turn).
@@ -47,7 +48,6 @@ most the linear interpolation's bound ``h^2 / 8 * max|ECC''|`` (h = 30 deg).
 """
 
 import json
-import shutil
 
 import numpy as np
 import pytest
@@ -59,10 +59,6 @@ from sim.compensation import JointTable
 from sim.errorfuncs import Constant, Periodic
 from sim.machine import Machine
 from sim.machines import MACHINES
-
-pytestmark = pytest.mark.skipif(shutil.which("linuxcnc") is None,
-                                reason="linuxcnc not installed (make test-controllers installs Debian's "
-                                       "linuxcnc-uspace): the rotary compensation loop needs real LinuxCNC")
 
 #: C's angular positioning error (rad) as a function of the angle (rad): periodic in the turn
 ECC = Periodic(12e-6, 2 * np.pi, 0.3) + Periodic(4e-6, np.pi, 1.0) + Constant(2e-6)

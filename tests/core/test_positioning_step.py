@@ -135,3 +135,94 @@ def test_an_ecmc_file_records_its_step():
     log = parse_ecmc_dat(text, "e.dat")
     assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12) and log.text_steps["target"] == 1.0
     assert list(log.lines[:2]) == [4, 5]   # cycle 1 FWD at targets 0, 10: REF_DATA_FWD[1,1], [2,1]
+
+
+# ---- session 35: the declared decimals held per cell; one on-step question for both writers ----------------
+
+def _declared(measured_decimals: int, declared: int, row_text=None) -> str:
+    text = _rounded(measured_decimals, f"# number_format: shortest round-trip; decimals measured_mm={declared}")
+    if row_text is not None:
+        lines = text.splitlines()
+        k = next(i for i, ln in enumerate(lines) if ln[:1].isdigit())
+        c = lines[k + 3].split(",")
+        c[3] = row_text
+        lines[k + 3] = ",".join(c)
+        text = "\n".join(lines) + "\n"
+    return text
+
+
+def test_a_cell_with_more_decimals_than_declared_is_refused_naming_its_row():
+    """iso34's leftover: a positioning log's ``decimals measured_mm=3`` was taken as the step and a cell with
+    more decimals read silently (the probe log refuses it). Now the same refusal in the same words, naming the
+    row and the file line; fewer decimals than declared read (``405.77`` is 405.770 to 1 um)."""
+    good = parse_positioning_log(_declared(2, 3), source="d.csv")
+    assert good.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12)
+    with pytest.raises(PositioningLogError) as e:
+        parse_positioning_log(_declared(3, 3, "297.9055"), source="d.csv")
+    msg = str(e.value)
+    assert msg.startswith("d.csv: row 3 (line 13): column 'measured_mm': '297.9055' has more decimals than the 3 "
+                          "the metadata number_format declares") and "\n" not in msg
+    with pytest.raises(PositioningLogError, match=r"row 0 \(line 10\): column 'measured_mm': '-0.000163' has more "):
+        parse_positioning_log(_declared(6, 3), source="d.csv")        # the whole column finer than declared
+    tgt = _rounded(3, "# number_format: shortest round-trip; decimals target_mm=2")
+    with pytest.raises(PositioningLogError, match=r"row 1 \(line 11\): column 'target_mm': '96.357' has more "):
+        parse_positioning_log(tgt, source="d.csv")
+
+
+def test_the_refusal_is_one_line_exit_2_from_the_cli(tmp_path, capsys):
+    from scenarios.cli import main
+
+    f = tmp_path / "d.csv"
+    f.write_text(_declared(3, 3, "297.9055"))
+    assert main(["iso230-2", str(f), "--json", str(tmp_path / "o.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and "row 3 (line 13)" in err
+    assert not (tmp_path / "o.json").exists()
+
+
+def test_on_step_known_answers_and_each_writers_tolerance():
+    """``core.probelog.on_step``: the one question both writers ask. Values read from K-decimal text lie on the
+    step exactly (K = 0..11); one ulp off is off at rtol 0 (the probe log's writer: a change code made is written
+    whole) and on at 1e-6 (the positioning writer's); a thousandth of a step is off at both. A table's computed
+    measured column (target + deviation) is off the exact step in about a quarter of sums and on within 1e-6."""
+    from core.probelog import WRITE_ON_STEP_RTOL_POSITIONING as RP, WRITE_ON_STEP_RTOL_PROBE as R0, on_step
+
+    rng = np.random.default_rng(35)
+    for k in range(12):
+        v = [float(f"{x:.{k}f}") for x in rng.uniform(-1000, 1000, 300)]
+        assert on_step(v, k, R0) and on_step(v, k, RP), k
+    x = 405.771
+    assert not on_step([np.nextafter(x, 1e9)], 3, R0) and on_step([np.nextafter(x, 1e9)], 3, RP)
+    assert not on_step([x + 1e-6], 3, R0) and not on_step([x + 1e-6], 3, RP)
+    assert on_step([np.nan, np.inf, 1.5], 1) and on_step([], 3) and on_step([np.nan], 3)
+    t = np.round(rng.uniform(-1000, 1000, 2000), 3)
+    d = np.round(rng.uniform(-50, 50, 2000), 1)
+    sums = t + d * 1e-3
+    off = [not on_step([s], 4, R0) for s in sums]
+    assert 0.1 < np.mean(off) < 0.5 and on_step(sums, 4, RP)
+
+
+def test_the_writers_decisions_unchanged_by_the_shared_helper():
+    """Both writers' behaviour as before the helper: the probe log writes a column read to 3 decimals to 3 and a
+    column moved by 1e-9 mm after reading whole; the positioning writer keeps a table's computed column to its
+    step and drops the line for a column moved off it."""
+    from dataclasses import replace
+
+    from core.positioning import _written_decimals
+    from core.probelog import fixed_decimals, make_log
+
+    cols = {"setup": ["s"] * 2, "target": ["a", "b"], "t_s": [0.0, 1.0], "X_mm": [1.234, 2.5], "Y_mm": [0.0, 0.0],
+            "Z_mm": [0.0, 0.0], "Xn_mm": [1.0, 2.0], "Yn_mm": [0.0, 0.0], "Zn_mm": [0.0, 0.0], "nx": [1.0, 1.0],
+            "ny": [0.0, 0.0], "nz": [0.0, 0.0]}
+    log = replace(make_log(cols), text_steps={"X_mm": 1e-3})
+    assert fixed_decimals(log) == {"X_mm": 3}
+    log.columns["X_mm"] = np.array([1.234 + 1e-9, 2.5])
+    assert fixed_decimals(log) == {}
+    log.columns["X_mm"] = np.array([np.nextafter(1.234, 9.0), 2.5])     # one ulp: written whole (rtol 0)
+    assert fixed_decimals(log) == {}
+    text = "target,cycle,direction,deviation_um\n" + "".join(
+        f"{t},{c},{dd},{0.1 * c + (1.3 if dd == '-' else 0.0):.1f}\n"
+        for c in (1, 2, 3) for t in (0.001, 100.017, 200.123) for dd in "+-")
+    tab = parse_table(text)
+    assert _written_decimals(tab) == {"target_mm": 3, "measured_mm": 4}
+    assert _written_decimals(replace(tab, measured=tab.measured + 1e-9)) is None

@@ -887,20 +887,85 @@ def test_grbl_transcript_with_inch_reports_is_refused_naming_the_setting(tmp_pat
     assert "set $13=0" in err or "not a number" in err
 
 
-@pytest.mark.parametrize("edit", [
-    lambda t: t.replace("$13=1", "$13=0"),                                            # a mm controller's dump
-    lambda t: t.replace("1000.011 < ok", "1000.011 < ok\n1000.050 > $13=0\n1000.051 < ok"),  # set back to mm
-    lambda t: t.replace("1000.010 < $13=1\n", "") + "1008.000 > $13=1\n1008.001 < ok\n",   # inches after the touches
-    lambda t: t.replace("1000.010 < $13=1\n", ""),                                    # no dump: read as mm
+def _mm3(t):
+    """INCH_TRANSCRIPT's reports as GRBL prints mm, to 3 decimals (printFloat_CoordValue)."""
+    return t.replace("0.0000", "0.000").replace("0.0669", "0.067").replace("0.0079", "0.008")
+
+
+@pytest.mark.parametrize("edit, z, y", [
+    (lambda t: t.replace("$13=1", "$13=0"), 0.0669, 0.0079),                   # a mm controller's dump
+    (lambda t: t.replace("1000.011 < ok", "1000.011 < ok\n1000.050 > $13=0\n1000.051 < ok"), 0.0669, 0.0079),  # set back
+    (lambda t: _mm3(t.replace("1000.010 < $13=1\n", "")) + "1008.000 > $13=1\n1008.001 < ok\n", 0.067, 0.008),  # inches after
+    (lambda t: _mm3(t.replace("1000.010 < $13=1\n", "")), 0.067, 0.008),      # no dump, GRBL's mm print: read as mm
 ])
-def test_grbl_transcript_in_mm_reads_whatever_13_says_elsewhere(tmp_path, capsys, edit):
+def test_grbl_transcript_in_mm_reads_whatever_13_says_elsewhere(tmp_path, capsys, edit, z, y):
+    """Reports read as mm: a $13=0 before them says so whatever they print (a firmware built to print mm to 4
+    decimals keeps its '$$' answer in the transcript); without any $13 before them, GRBL's mm print (3 decimals)."""
     plan_path = write_probe_log(tmp_path / "plan.csv", INCH_PLAN)
     tr, out = tmp_path / "t.txt", tmp_path / "o.csv"
     tr.write_text(edit(INCH_TRANSCRIPT))
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 0
     log = read_probe_log(out)
-    np.testing.assert_array_equal(log.columns["Z_mm"], [0.0669, 0.0669])
-    np.testing.assert_array_equal(log.columns["Y_mm"], [0.0, 0.0079])
+    np.testing.assert_array_equal(log.columns["Z_mm"], [z, z])
+    np.testing.assert_array_equal(log.columns["Y_mm"], [0.0, y])
+
+
+def test_grbl_transcript_printed_as_inches_without_13_is_refused(tmp_path, capsys):
+    """review34 (low): a transcript without '$$' (most senders log none) whose reports GRBL printed in inches
+    ($13=1: 4 decimals, printFloat_CoordValue; mm 3) was read as mm: near the origin the plan's alignment check
+    passed and the import wrote 0.0669 in as 0.0669 mm (exit 0; farther out it was refused as 'not a touch of
+    plan row 0', naming no units). Now refused in one line naming the report's line, its 4 decimals and $13."""
+    plan_path = write_probe_log(tmp_path / "plan.csv", INCH_PLAN)
+    tr, out = tmp_path / "t.txt", tmp_path / "o.csv"
+    tr.write_text(INCH_TRANSCRIPT.replace("1000.010 < $13=1\n", ""))
+    assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err and not out.exists()
+    assert "line 4: the probe report prints 4 decimals, as GRBL prints inches ($13=1" in err
+    assert "set $13=0" in err
+
+
+@pytest.mark.parametrize("dump", [None, "0", "1"])
+def test_grbl_emulator_with_13_set_imports_as_its_units_say(tmp_path, capsys, dump):
+    """The project's GRBL emulator (GRBL 1.1h's report.c: every position through printFloat_CoordValue) with
+    $13=1 prints [PRB:...] in inches to 4 decimals: its transcript, with no '$$' in it or with its '$$' answer
+    ($13=1), is refused naming $13, nothing written; the same session with $13=0 imports the touch it reports,
+    the plan's (10, 10, 0) mm. The inch report is checked against the mm one: x 25.4 within the inch print's
+    half step (0.00005 in = 1.27 um)."""
+    from core.probelog import make_log as _mk
+    plan = _mk({"setup": ["table"], "target": ["p0"], "t_s": [np.nan], "X_mm": [np.nan], "Y_mm": [np.nan],
+                "Z_mm": [np.nan], "Xn_mm": [10.0], "Yn_mm": [10.0], "Zn_mm": [0.0], "nx": [0.0], "ny": [0.0],
+                "nz": [1.0]}, meta={"stylus_r_mm": "1.5"})
+    plan_path = write_probe_log(tmp_path / "plan.csv", plan)
+
+    def session(report_inches):
+        emu = GrblEmulator(scene(), ControllerConfig(home=(0, 0, 50)))
+        lines = []
+        for cmd in (["$X", f"$13={report_inches}"] + (["$$"] if dump is not None else [])
+                    + ["G53 G90 G1 X10 Y10 Z2 F2000", "G91 G38.2 X0 Y0 Z-4 F200", "G90"]):
+            got = [x for x in emu.feed_bytes((cmd + "\n").encode())[0] if x]
+            if cmd.startswith("$13="):
+                continue            # the setting made off the record (another sender, or an earlier session)
+            lines += [f"> {cmd}"] + [f"< {x}" for x in got]
+        return "\n".join(lines) + "\n"
+
+    mm_text = session(0)
+    prb_mm = parse_prb(next(ln[2:] for ln in mm_text.splitlines() if ln.startswith("< [PRB")))[0]
+    text = session(1 if dump != "0" else 0)
+    tr, out = tmp_path / "t.txt", tmp_path / "o.csv"
+    tr.write_text(text)
+    rc = main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(out)])
+    err = capsys.readouterr().err
+    if dump == "0":
+        assert rc == 0, err
+        np.testing.assert_array_equal(read_probe_log(out).positions_mm()[0], prb_mm)
+        assert np.allclose(prb_mm, [10, 10, 0], atol=0.05)
+        return
+    prb_in = parse_prb(next(ln[2:] for ln in text.splitlines() if ln.startswith("< [PRB")))[0]
+    assert np.all(np.abs(prb_in * 25.4 - prb_mm) <= 0.5e-4 * 25.4 + 0.5e-3 + 1e-9)   # both prints' half steps
+    assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err and not out.exists()
+    assert ("the probe report prints 4 decimals, as GRBL prints inches" if dump is None
+            else "the probe report is in inches (the controller's $13=1") in err
 
 
 def test_probeopen_rotary_positions_are_checked_against_the_plan(tmp_path, plan_path, measured, capsys):

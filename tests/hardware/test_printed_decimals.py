@@ -79,14 +79,20 @@ def test_import_of_the_real_firmwares_transcript_declares_its_1_um_and_fit_floor
 
 
 def test_the_step_is_read_from_the_reports_text_not_assumed(tmp_path, capsys):
-    """The same transcript with every report printed to 4 decimals (a controller configured so): the log
+    """The same transcript with every report printed to 4 decimals (a firmware built to print mm so; its '$$'
+    answer, $13=0, kept in the transcript says mm: 4 decimals without it is GRBL's inch print, refused): the log
     declares 4 and the fit floors on 0.1 um."""
     plan = write_probe_log(tmp_path / "plan.csv", plan_log())
     tr = tmp_path / "four.txt"
-    tr.write_text(re.sub(r"\[PRB:([^:\]]*):", lambda m: "[PRB:" + ",".join(v + "0" for v in m.group(1).split(","))
-                         + ":", CAMPAIGN.read_text()))
+    four = re.sub(r"\[PRB:([^:\]]*):", lambda m: "[PRB:" + ",".join(v + "0" for v in m.group(1).split(","))
+                  + ":", CAMPAIGN.read_text())
+    tr.write_text(four)
     assert "[PRB:10.0000,10.0000,0.0000:1]" in tr.read_text()
     out = tmp_path / "four.csv"
+    assert main(["import", "grbl", str(tr), "--plan", str(plan), "--out", str(out)]) == 2
+    assert "prints 4 decimals, as GRBL prints inches" in capsys.readouterr().err and not out.exists()
+    first, rest = four.split("\n", 1)
+    tr.write_text(f"{first}\n{first.split()[0]} < $13=0\n{rest}")
     assert main(["import", "grbl", str(tr), "--plan", str(plan), "--out", str(out)]) == 0
     assert "decimals X_mm=4, Y_mm=4, Z_mm=4" in out.read_text()
     rep, _ = _fit_table(out, tmp_path, capsys)

@@ -73,6 +73,14 @@ def test_c_centre_of_a_c_carried_by_a_names_a():
     rep = identify_report(res, None, {**identify_record(log), "chain": None})
     note = [n for n in rep["conventions"]["notes"] if n.startswith("EXC, EYC")][0]
     assert "on a C carried by another axis" in note and "relative to the axis carrying it" in note
+    # session 35: Fig. 13's label (report, recording) said "(EX0C, EY0C) = (0.0, 10.0) um" here, where both are
+    # 0 and the 10 um is EY0A's: with the log's chain it names the carrier, without one it claims nothing
+    from viz.figures import centre_label
+
+    lab = centre_label(*c_axis_centre_um(res), chain=log.meta["kinematic_chain"])
+    assert "C carried by A: its line (0.0, 10.0) µm" in lab and "EY0A" in lab and "(EX0C, EY0C) =" not in lab
+    lab = centre_label(*c_axis_centre_um(res))
+    assert "chain unknown" in lab and "(EX0C, EY0C) =" not in lab and "C line (0.0, 10.0) µm" in lab
 
 
 @pytest.mark.parametrize("ex0c_um, ey0c_um", [(12.0, 0.0), (-5.0, 9.0)])
@@ -92,7 +100,8 @@ def test_reported_c_line_is_the_injected_one(ex0c_um, ey0c_um):
     # the truth in the gauge is the same point: the part rides on the line, nothing else is injected
     np.testing.assert_allclose(true_c_centre_um(machine, res, float(np.median(t.pn_R[:, 2]))),
                                [-ex0c_um, -ey0c_um], atol=1e-6)
-    assert f"(EX0C, EY0C) = ({ex0c_um:.1f}, {ey0c_um:.1f}) µm" in centre_label(*c_axis_centre_um(res))
+    lab = centre_label(*c_axis_centre_um(res), chain=machine.chain)      # the nmv3000's C rides on A
+    assert f"C carried by A: its line ({ex0c_um:.1f}, {ey0c_um:.1f}) µm\n= (EX0C, EY0C) + what A adds" in lab
 
 
 def test_ecc_sign_and_the_linear_axes_in_the_centre():
@@ -148,5 +157,28 @@ def test_c_line_label_names_the_gauge():
 
     np.testing.assert_array_equal(line_from_centre([0.0, -2.5]), [0.0, 2.5])
     assert str(line_from_centre([0.0, 1.0])[0]) == "0.0"   # no -0.0 in labels and JSON
-    lab = centre_label(4.1, -0.04)
+    lab = centre_label(4.1, -0.04, chain="V[w-C-b-Y-X-Z-(C)-t]")           # C on the bed
     assert "(EX0C, EY0C) = (-4.1, 0.0) µm" in lab and "gauge of eqs 16-17" in lab and "x = y = 0" not in lab
+
+
+@pytest.mark.parametrize("chain, said", [
+    ("V[w-C-b-Y-X-Z-(C)-t]", "(EX0C, EY0C) = (-4.1, 0.0) µm"),
+    ("V[w-C-A-b-Y-X-Z-(C)-t]", "C carried by A: its line (-4.1, 0.0) µm\n= (EX0C, EY0C) + what A adds\n(EY0A, EB0A"),
+    ("[w C' A' b X Y Z (C1) t]", "C carried by A: its line (-4.1, 0.0) µm"),
+    ("V[w-C-B-b-Y-X-Z-(C)-t]", "C carried by B: its line (-4.1, 0.0) µm\n= (EX0C, EY0C) + what B adds\n(EX0B, EA0B"),
+    ("V[w-C-X-b-Y-Z-(C)-t]", "C line (-4.1, 0.0) µm: (EX0C, EY0C)\nif C sits on the bed (C carried by X;"),
+    ("V[w-X-Y-b-Z-(C)-t]", "C line (-4.1, 0.0) µm: (EX0C, EY0C)\nif C sits on the bed (chain unknown;"),
+    (None, "C line (-4.1, 0.0) µm: (EX0C, EY0C)\nif C sits on the bed (chain unknown;"),
+])
+def test_c_line_label_says_what_carries_c(chain, said):
+    """The label claims (EX0C, EY0C) = the line only for a C on the bed; carried by A or B it names the carrier
+    and its terms (core.selfcal.c_centre_note's), carried by another axis or with no chain (or none with C) it
+    says the line is (EX0C, EY0C) only on the bed. The figure's legend and the recording's label carry it."""
+    from viz.figures import centre_label, rotary_centre_figure
+
+    lab = centre_label(4.1, -0.04, chain=chain)
+    assert lab.startswith("centre (4.1, -0.0) µm:\n") and said in lab and "gauge of eqs 16-17" in lab
+    assert ("(EX0C, EY0C) =" in lab) == (chain == "V[w-C-b-Y-X-Z-(C)-t]")
+    fig = rotary_centre_figure([0, 75, 130, 210], [0.0, -8.9, -19.7, -22.4], [0.0, -11.6, -9.2, 6.0],
+                               centre_um=(4.1, -0.04), chain=chain)
+    assert lab in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]

@@ -31,3 +31,6 @@ def test_demo_view_maps_are_rows_y_columns_x_on_a_non_square_grid():
     assert v.ex_um.shape == v.ey_um.shape == v.tex.shape == v.tey.shape == (6, 11)
     np.testing.assert_allclose(v.ex_um[2, 7], ex[7, 2] * 1e6, rtol=0, atol=1e-9)
     np.testing.assert_allclose(v.ey_um[5, 10], ey[10, 5] * 1e6, rtol=0, atol=1e-9)
+    assert v.chain is None                  # an ident without identified_on: chain unknown, the label hedges
+    ident["estimate"] = {"identified_on": {"chain": log.meta["kinematic_chain"]}}
+    assert _DemoView.of(t, res, ident, machine=machine).chain == "V[w-C-A-b-Y-X-Z-(C)-t]"   # the C label's carrier

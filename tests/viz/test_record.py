@@ -197,7 +197,7 @@ def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
     c = [0.0, 75.0, 130.0, 210.0]
     with vr.recording(p) as rec:
         vr.log_rotary(rec, c, [16, 14, 15, 13], [6, 7, 5, 6], ecc_urad=[0, 2, 1, 3],
-                      u95_exc_um=[1, 1, 1, 1], centre_um=(15.0, 6.0))
+                      u95_exc_um=[1, 1, 1, 1], centre_um=(15.0, 6.0), chain="V[w-C-A-b-Y-X-Z-(C)-t]")
         n = 12
         vr.log_workpiece(rec, rng.random((n, 3)), np.tile([1.0, 0, 0], (n, 1)),
                          rng.normal(size=n), u95_um=rng.random(n))
@@ -210,6 +210,8 @@ def test_rotary_centre_trajectory_and_workpiece(tmp_path, rng):
     traj = np.array(data["/rotary/C/centre_trajectory"]["Points2D:positions"][0])
     assert np.allclose(traj, [[16, 6], [14, 7], [15, 5], [13, 6]])
     assert data["/rotary/C/centre_trajectory/centre"]["Points2D:positions"][0] == [[15.0, 6.0]]
+    lab = data["/rotary/C/centre_trajectory/centre"]["Points2D:labels"][0][0]   # the label names C's carrier
+    assert "C carried by A: its line (-15.0, -6.0) µm = (EX0C, EY0C) + what A adds" in lab and "\n" not in lab
     assert data["/plots/rotary/C/ECC/value"]["C_mdeg"] == [0, 75000, 130000, 210000]
     paths = schema_paths(p)
     for e in ("nominal", "deviation", "u95"):
