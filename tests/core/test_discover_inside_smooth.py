@@ -83,3 +83,26 @@ def test_true_bump_kept_ambiguous_with_the_rule(monkeypatch, seed):
         v = _verdict(monkeypatch, on, _BUMP, seed)
         assert v["p_smooth_beyond_cause"] >= D.Settings().alpha_family
         assert v["indistinguishable"] and not v["refused"] and "inside_smooth" not in v
+
+
+@pytest.mark.slow
+def test_feed_latency_10105_unexplained_with_the_rule(monkeypatch):
+    """Set C's gen_a feed_latency 10105 (spent blind seed, the known answer; out of the catalogue, acceptable
+    `unexplained`). Off: ``periodic_axis_error?`` beside ``local_scale_defect?``, the bump's signal wholly inside the
+    smooth map (the reading wp34 reproduced; extended workpiece 15.04 um against 3.12 + U95 19.44, held only by the
+    fine term's carried shift). On: the bump is refused where it would have been adopted, the search adopts nothing
+    and the reading is `unexplained`; the extended workpiece 2.03 um, U95 7.86, within the check without any shift
+    carried. Tolerances 0.01 um: figures printed to that."""
+    from scenarios.blind import gen_a
+    from scenarios.hidden import blind_outcome
+
+    monkeypatch.setattr(D, "INSIDE_SMOOTH_REFUSED", False)
+    o0 = blind_outcome(gen_a, "feed_latency", 10105, generator="gen_a")
+    assert (o0.cause, o0.findings, o0.confident) == ("periodic_axis_error", ("periodic_axis_error",
+                                                                            "local_scale_defect"), False)
+    assert o0.cause not in o0.acceptable
+    monkeypatch.setattr(D, "INSIDE_SMOOTH_REFUSED", True)
+    o1 = blind_outcome(gen_a, "feed_latency", 10105, generator="gen_a")
+    assert (o1.cause, o1.findings) == ("unexplained", ("unexplained",)) and o1.cause in o1.acceptable
+    assert o1.wp_ext_um <= o1.wp_base_um + o1.wp_u95_um
+    assert (o1.wp_base_um, o1.wp_ext_um, o1.wp_u95_um) == pytest.approx((3.12, 2.03, 7.86), abs=0.01)
