@@ -47,6 +47,18 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     return rep
 
 
+def unit_keys_back(rep, unit: str):
+    """A positioning report with its ``_<unit>`` keys named ``_um`` again (what the summary and the report page
+    read), ``unit`` gone from the baseline block; the values as they are (:func:`core.baseline.positioning_report_units`
+    renamed them; a linear axis's report, ``unit`` "um", comes back unchanged)."""
+    if isinstance(rep, dict):
+        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): unit_keys_back(v, unit)
+                for k, v in rep.items() if not (k == "unit" and v == unit)}
+    if isinstance(rep, list):
+        return [unit_keys_back(v, unit) for v in rep]
+    return rep
+
+
 def workpiece_form_change(d) -> dict | None:
     """The largest change of the workpiece's FORM from the baseline to the extended model, or None.
 
@@ -175,9 +187,6 @@ def _discover_positioning(log_path, report, grid_mm, warned: list | None = None)
     if grid_mm is not None:
         raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
                           "and direction)")
-    if report:
-        raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
-                          "vmt iso230-2 --report draws the test)")
     from scenarios.cli.reading import read_positioning
 
     log = read_positioning(log_path, "discover")

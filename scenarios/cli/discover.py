@@ -6,7 +6,7 @@ from pathlib import Path
 
 # the library part (read, discover, check, write), shared with the regression studies; names kept here for callers
 from scenarios.discover_run import (_discover_positioning, _discover_probe_log, _is_positioning_log,  # noqa: F401
-                                    lobes_not_determined, run_discover, workpiece_form_change)
+                                    lobes_not_determined, run_discover, unit_keys_back, workpiece_form_change)
 
 
 def register(sub) -> None:
@@ -55,7 +55,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     if unit != "um":   # a rotary positioning test's report: arc seconds (core.baseline.positioning_report_units)
         from core.baseline import positioning_report_units
 
-        back = _unit_keys_back(rep, unit)
+        back = unit_keys_back(rep, unit)
         return [positioning_report_units(ln, unit) for ln in summary_lines(back, kind)]
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
@@ -124,17 +124,6 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
                                                  if kind == "planar" else ""))
             out.append(line)
     return out
-
-
-def _unit_keys_back(rep, unit: str):
-    """The report with its ``_<unit>`` keys named ``_um`` again (what :func:`summary_lines` reads), ``unit`` gone
-    from the baseline block; the values as they are."""
-    if isinstance(rep, dict):
-        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): _unit_keys_back(v, unit)
-                for k, v in rep.items() if not (k == "unit" and v == unit)}
-    if isinstance(rep, list):
-        return [_unit_keys_back(v, unit) for v in rep]
-    return rep
 
 
 def run(args) -> int:
