@@ -166,11 +166,7 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     secs.append(Section("Extended model residuals",
                         figures={"residuals_extended": figures.residuals_figure(
                             t_s[fin], approach_deg[fin], d.residuals_extended_um[fin])}))
-    rows = []
-    for f in rep["findings"]:
-        pu = f.get("params_u95", {})
-        for k, v in f["params"].items():
-            rows.append([f["cause"], k, v, pu.get(k, "")])
+    rows = _magnitude_rows(rep, "planar")
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
     secs.append(Section("Workpiece per target (discovery)",
@@ -293,11 +289,7 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
                         figures={"residuals_extended": figures.positioning_residuals_figure(
                             t_s[fin], target[fin], direction[fin], d.residuals_extended_um[fin], unit=sym,
                             target_label=tlabel, title="Residuals of the extended model")}))
-    rows = []
-    for f in rep["findings"]:
-        pu = f.get("params_u95", {})
-        for k, v in f["params"].items():
-            rows.append([f["cause"], k, v, pu.get(k, "")])
+    rows = _magnitude_rows(rep, "positioning")
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
     secs.append(Section("Mean deviation per target and direction (discovery)",
@@ -310,6 +302,21 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
                               w["extended_u95_um"]] for w in r["workpiece"]])]))
     return secs
+
+
+def _magnitude_rows(rep: dict, kind: str) -> list:
+    """The "Fitted magnitudes" table: cause, parameter, value, U95 as the JSON gives them, except a fixed
+    parameter (its unit, U95 "fixed") and an angle whose U95 reaches half its circle (value "n/d"), said as the
+    summary says them (scenarios.discover_run.magnitude_said; audit35 N1, N2)."""
+    from scenarios.discover_run import magnitude_said
+
+    rows = []
+    for f in rep["findings"]:
+        pu = f.get("params_u95", {})
+        for k, v in f["params"].items():
+            m = magnitude_said(f["cause"], k, v, pu.get(k), kind)
+            rows.append([f["cause"], k, v, pu.get(k, "")] if m is None else [f["cause"], k, m[0], m[1]])
+    return rows
 
 
 def discovery_report(folder, d, rep: dict, title: str) -> Path:
