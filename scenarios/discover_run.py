@@ -47,6 +47,46 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     return rep
 
 
+#: A finding's parameters that are context, not fitted: printed with their unit and "(fixed)", never "+- U95"
+#: (audit35 N2: a drift's ``over_h``, the campaign's duration, printed "0.924 +- 0" as if it were measured; the
+#: JSON keeps its value and its params_u95 of 0.0). Name -> unit.
+FIXED_PARAMS = {"over_h": "h"}
+
+
+def magnitude_said(cause: str, key: str, v, u, kind: str = "planar") -> tuple[str, str | None] | None:
+    """How the summary and the report page say a parameter the JSON gives without a measured U95, or None.
+
+    ``(value text, U95 text)`` for a context parameter (:data:`FIXED_PARAMS`: ``("0.924 h", "fixed")``) and for
+    an angle whose U95 the report withholds because it reaches half its circle (a cause's
+    :attr:`core.causes.Cause.circular`: a periodic error's phase beside an amplitude consistent with zero;
+    audit35 N1: ``EYX_phase_rad -1.96`` was printed bare, read as a measurement): ``("n/d", "reaches half the
+    circle")``. None for every other parameter (said as before: value +- U95, or n/d).
+    """
+    from fnmatch import fnmatchcase
+
+    if key in FIXED_PARAMS and isinstance(v, float):
+        return f"{v:.3g} {FIXED_PARAMS[key]}", "fixed"
+    if isinstance(v, float) and u is None:
+        from core import causes
+
+        c = causes.lookup(cause, kind)
+        if c is not None and any(fnmatchcase(key, pat) for pat in (c.circular or {})):
+            return "n/d", "reaches half the circle"
+    return None
+
+
+def unit_keys_back(rep, unit: str):
+    """A positioning report with its ``_<unit>`` keys named ``_um`` again (what the summary and the report page
+    read), ``unit`` gone from the baseline block; the values as they are (:func:`core.baseline.positioning_report_units`
+    renamed them; a linear axis's report, ``unit`` "um", comes back unchanged)."""
+    if isinstance(rep, dict):
+        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): unit_keys_back(v, unit)
+                for k, v in rep.items() if not (k == "unit" and v == unit)}
+    if isinstance(rep, list):
+        return [unit_keys_back(v, unit) for v in rep]
+    return rep
+
+
 def workpiece_form_change(d) -> dict | None:
     """The largest change of the workpiece's FORM from the baseline to the extended model, or None.
 
@@ -175,9 +215,6 @@ def _discover_positioning(log_path, report, grid_mm, warned: list | None = None)
     if grid_mm is not None:
         raise ConfigError("--grid-mm: a positioning test has no error-map grid (its baseline is a mean per target "
                           "and direction)")
-    if report:
-        raise ConfigError("--report: not available for positioning tests yet (the JSON and the summary are; "
-                          "vmt iso230-2 --report draws the test)")
     from scenarios.cli.reading import read_positioning
 
     log = read_positioning(log_path, "discover")

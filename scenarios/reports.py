@@ -166,11 +166,7 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     secs.append(Section("Extended model residuals",
                         figures={"residuals_extended": figures.residuals_figure(
                             t_s[fin], approach_deg[fin], d.residuals_extended_um[fin])}))
-    rows = []
-    for f in rep["findings"]:
-        pu = f.get("params_u95", {})
-        for k, v in f["params"].items():
-            rows.append([f["cause"], k, v, pu.get(k, "")])
+    rows = _magnitude_rows(rep, "planar")
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
     secs.append(Section("Workpiece per target (discovery)",
@@ -183,8 +179,151 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     return secs
 
 
+#: An ISO 230-2 test's covariates whose basis is not one variable, drawn against this one (core.baseline.positioning).
+_POSITIONING_PLOT_AS = {"position_by_cycle": "position", "time_by_direction": "time", "direction_by_cycle": "cycle"}
+
+
+def positioning_target(bl) -> tuple[np.ndarray, str]:
+    """(target of each reading in the log's unit, its axis label) of a positioning baseline: mm, or degrees for a
+    rotary axis (the engine holds radians x :data:`core.baseline.ROTARY_ENGINE_PER_RAD` there)."""
+    x = np.asarray(bl.data.x, float)
+    if (bl.info or {}).get("target_unit") == "deg":
+        from core.baseline import ROTARY_ENGINE_PER_RAD
+
+        return np.degrees(x / ROTARY_ENGINE_PER_RAD), "the target position / °"
+    return x / MM, "the target position / mm"
+
+
+def _positioning_sections(d, rep: dict, rec=None) -> list:
+    """Report sections of discovery on an ISO 230-2 test (``vmt discover POSITIONING_LOG --report``).
+
+    The probe-log page's machinery (verdict, noise floor, the diagnosis figure of
+    every covariate that carries structure, residuals, fitted magnitudes), with
+    the test's own covariates (time, cycle, target position, reading order,
+    temperatures; a covariate whose basis is not one variable drawn against
+    :data:`_POSITIONING_PLOT_AS`), its units (µm, or ″ for a rotary axis: the
+    report's ``_arcsec`` keys) and its words (readings, cycles, repeatability,
+    the mean deviation per target and direction). Every figure and word is
+    the JSON's: the panels' titles are ``rep["diagnosis"][i]["text"]``.
+    """
+    from core.baseline import positioning_report_units
+    from viz import figures, record
+    from viz.report import Section, Table
+
+    from scenarios.discover_run import unit_keys_back
+
+    unit = (rep.get("baseline") or {}).get("unit", "um")
+    r = unit_keys_back(rep, unit)          # the figures under their _um keys, in the test's unit
+    sym = "µm" if unit == "um" else "″"
+
+    def said(text: str) -> str:
+        return positioning_report_units(text, unit)
+
+    bl = d.baseline
+    n = bl.n
+    t_s = np.asarray(bl.data.t_s, float)
+    target, tlabel = positioning_target(bl)
+    direction = np.asarray(bl.data.direction, int)
+    out_idx = [int(np.flatnonzero(bl.rows == q)[0]) for q in rep["outlier_rows"]]
+    if rec is not None:
+        record.log_markdown(rec, "discovery", said(record.findings_markdown(r)))
+    nz = r["noise_um"]
+    secs = [
+        Section("Discovery: verdict", text=_verdict(r).replace("probing noise", "repeatability"),
+                figures={"findings": figures.findings_figure(r, quantity="the deviation", unit=sym)},
+                tables=[Table(["model", f"RMS / {sym}", f"cross-validated RMS / {sym}"],
+                              [[r["baseline"]["model"], r["baseline"]["rms_um"], r["baseline_cv_rms_um"]],
+                               [r["extended"]["model"], r["extended"]["rms_um"], r["extended"]["cv_rms_um"]]])]),
+        Section("Repeatability (the noise floor)",
+                text="The noise from the test itself: the scatter of the readings of one target in one direction "
+                     "over the cycles (the standard's replicates; beyond the model's terms when said), and the "
+                     "baseline's in-sample residuals. The held-out/in-sample ratio is not a test here: leaving a "
+                     "cycle out of means per target and direction scales each residual by n/(n-1), so on balanced "
+                     "cycles the ratio is (n/(n-1))^2 whatever the data (the JSON keeps it, noise_um.cv_gap).",
+                tables=[Table(["estimate", f"σ / {sym}", "figures"], [
+                    ["used", nz["sigma_um"], said(str(nz["method"]) + (
+                        " beyond " + ", ".join(nz["repeats"]["beyond"])
+                        if nz["method"] == "repeats" and (nz.get("repeats") or {}).get("beyond") else ""))],
+                    ["repeated readings (one target and direction)", nz["repeats"]["sigma_um"],
+                     f"{nz['repeats']['dof']} dof"],
+                    ["in-sample residuals", nz["in_sample"]["sigma_um"], f"{nz['in_sample']['dof']} dof"]])]),
+    ]
+    words = {g["covariate"]: g["text"] for g in rep["diagnosis"]}
+    panels = []
+    for dg in d.diagnosis:
+        if dg.p_value >= FIGURE_P or dg.fitted_um is None or len(panels) >= 6:
+            continue
+        name = _POSITIONING_PLOT_AS.get(dg.covariate, dg.covariate)
+        cov = bl.covariate(name)
+        if cov is None or np.asarray(cov.values).ndim != 1:
+            continue
+        if name == "position":
+            x, label, ticks = target, tlabel, None
+        else:
+            x, label, ticks = diagnosis_axis(cov, np.asarray(cov.values), bl)
+            if name == "cycle" and ticks is not None:   # the cycles by the log's own numbers, not their indices
+                ticks = [bl.group_ids[int(float(v))] for v in ticks]
+        rows = np.setdiff1d(np.arange(n), out_idx) if len(dg.fitted_um) != n else np.arange(n)
+        panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
+                       "xlabel": label, "text": words.get(dg.covariate, said(dg.words)),
+                       **({"xticklabels": ticks} if ticks is not None else {})})
+    diag_rows = [[g["covariate"], g["explained_rms_um"], g["p_value"], g["text"]] for g in r["diagnosis"]]
+    secs.append(Section("Diagnosis: where the structure lives",
+                        text="For every covariate the test holds (time, cycle, target position, reading order, "
+                             "the logged temperatures, and the position, time and direction differently in each "
+                             "cycle), a smooth function of it is added to the baseline and tested (nested F test, "
+                             f"Holm over the covariates); the explained RMS is debiased. Drawn: each with p < "
+                             f"{FIGURE_P:g}." + ("" if panels else f" No covariate has p < {FIGURE_P:g}: "
+                                                                 "no panel to draw.") + said(_not_counted_note(rep)),
+                        figures={"diagnosis": figures.diagnosis_figure(
+                            panels, ylabel=f"residual of the deviation / {sym}")} if panels else {},
+                        tables=[Table(["covariate", f"explained RMS / {sym}", "p (Holm)", "in words"], diag_rows)]))
+    secs.append(Section("Baseline residuals: what the model gets wrong",
+                        text="Residuals of the baseline (the standard's mean per target and direction) against "
+                             "time and the target, each approach direction apart.",
+                        figures={"residuals_baseline": figures.positioning_residuals_figure(
+                            t_s, target, direction, d.residuals_baseline_um, unit=sym, target_label=tlabel,
+                            outlier_rows=out_idx)}))
+    fin = np.isfinite(d.residuals_extended_um)
+    secs.append(Section("Extended model residuals",
+                        figures={"residuals_extended": figures.positioning_residuals_figure(
+                            t_s[fin], target[fin], direction[fin], d.residuals_extended_um[fin], unit=sym,
+                            target_label=tlabel, title="Residuals of the extended model")}))
+    rows = _magnitude_rows(rep, "positioning")
+    if rows:
+        secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
+    secs.append(Section("Mean deviation per target and direction (discovery)",
+                        text="The baseline's estimand, ISO 230-2's mean unidirectional positional deviation per "
+                             "target and approach direction, and the same under the extended model (a drift or "
+                             "warm-up taken out), each with its U95 (k = 2). vmt iso230-2 --report draws the "
+                             "standard's figures of the test.",
+                        tables=[Table(
+                            ["target", f"baseline / {sym}", f"U95 / {sym}", f"extended / {sym}", f"U95 / {sym}"],
+                            [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
+                              w["extended_u95_um"]] for w in r["workpiece"]])]))
+    return secs
+
+
+def _magnitude_rows(rep: dict, kind: str) -> list:
+    """The "Fitted magnitudes" table: cause, parameter, value, U95 as the JSON gives them, except a fixed
+    parameter (its unit, U95 "fixed") and an angle whose U95 reaches half its circle (value "n/d"), said as the
+    summary says them (scenarios.discover_run.magnitude_said; audit35 N1, N2)."""
+    from scenarios.discover_run import magnitude_said
+
+    rows = []
+    for f in rep["findings"]:
+        pu = f.get("params_u95", {})
+        for k, v in f["params"].items():
+            m = magnitude_said(f["cause"], k, v, pu.get(k), kind)
+            rows.append([f["cause"], k, v, pu.get(k, "")] if m is None else [f["cause"], k, m[0], m[1]])
+    return rows
+
+
 def discovery_report(folder, d, rep: dict, title: str) -> Path:
     """Write ``folder`` with index.html, residual and diagnosis plots and a rerun recording.
+
+    A probe-log campaign's page (:func:`_discovery_sections`) or an ISO 230-2 test's
+    (:func:`_positioning_sections`: its covariates, its units, its words).
 
     Parameters
     ----------
@@ -199,10 +338,13 @@ def discovery_report(folder, d, rep: dict, title: str) -> Path:
     rrd = _recording_path(folder)
     bl = d.baseline
     with record.recording(rrd) as rec:
-        t = getattr(bl.data, "touches", None)
-        if t is not None:
-            record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
-        secs = _discovery_sections(d, None, rep, rec)
+        if getattr(bl, "kind", None) == "positioning":
+            secs = _positioning_sections(d, rep, rec)
+        else:
+            t = getattr(bl.data, "touches", None)
+            if t is not None:
+                record.log_touches(rec, t.pn_R, d.residuals_baseline_um, n_R=t.n_R)
+            secs = _discovery_sections(d, None, rep, rec)
     try:
         return write_report(folder, title, secs, recording=rrd)
     finally:

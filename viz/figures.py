@@ -27,6 +27,8 @@ function                          paper figure
 :func:`findings_figure`           discovery: RMS of baseline and candidates
 :func:`diagnosis_figure`          discovery: residuals against each covariate
                                   that carries structure, with its smooth term
+:func:`positioning_residuals_figure`  discovery on an ISO 230-2 test: residuals
+                                  vs time and target, by approach direction
 ================================  ===========================================
 """
 
@@ -618,12 +620,16 @@ def residuals_figure(t_s, approach_deg, residual_um, *, outlier_rows: Sequence[i
     return fig
 
 
-def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by model"):
+def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by model", *,
+                    quantity: str = "dq", unit: str = "µm"):
     """Residual RMS of the baseline and of each candidate extension.
 
     ``report``: the discovery report (keys ``baseline.rms_um``,
     ``findings[].cause`` / ``rms_um``, ``cause``, ``extended.cv_rms_um``,
-    ``baseline_cv_rms_um``; probe-log.md, "Discovery report").
+    ``baseline_cv_rms_um``; probe-log.md, "Discovery report"). ``quantity`` and
+    ``unit`` name what the RMS is of (a probe log's ``dq`` in µm; an ISO 230-2
+    test's deviation, in µm or ″ for a rotary axis, its report's keys named
+    ``_um`` again).
     """
     base = report.get("baseline") or {}
     if base.get("rms_um") is None:
@@ -646,18 +652,23 @@ def findings_figure(report: Mapping, title: str = "Discovery: residual RMS by mo
     cv_b, ext = report.get("baseline_cv_rms_um"), report.get("extended") or {}
     if cv_b is not None and ext.get("cv_rms_um") is not None:
         models = textwrap.fill(f"baseline: {base.get('model', '?')}; extended: {ext.get('model', '?')}", 100)
-        ax.set_title(f"{title}\ncross-validated RMS: baseline {cv_b:.3g} µm -> extended {ext['cv_rms_um']:.3g} µm"
+        ax.set_title(f"{title}\ncross-validated RMS: baseline {cv_b:.3g} {unit} -> "
+                     f"extended {ext['cv_rms_um']:.3g} {unit}"
                      f"\n{models}", fontsize="small")
     else:
         ax.set_title(title)
-    ax.set_xlabel("residual RMS of dq / µm")
+    ax.set_xlabel(f"residual RMS of {quantity} / {unit}")
     ax.set_ylabel("model (cause)")
     ax.grid(alpha=0.3, axis="x")
     return fig
 
 
-def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where the structure lives"):
+def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where the structure lives",
+                     ylabel: str = "residual of dq / µm"):
     """Residuals against each covariate that carries structure, with the fitted smooth term.
+
+    ``ylabel``: the residual's quantity and unit (a probe log's ``dq`` in µm; an ISO 230-2 test's positional
+    deviation, in µm or arc seconds).
 
     Parameters
     ----------
@@ -690,7 +701,7 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
         if ticks is not None:   # a category: drawn at 0, 1, ... and named
             ax.set_xticks(np.arange(len(ticks)), [str(v) for v in ticks], rotation=30 if len(ticks) > 4 else 0,
                           fontsize="x-small")
-        ax.set_ylabel("residual of dq / µm")
+        ax.set_ylabel(ylabel)
         # wrapped to the panel's width: a single panel's long title was cut ("... p = 0" for p = 0.0012, review30c)
         ax.set_title(textwrap.fill(str(p.get("text", "")), 58), fontsize="x-small")
         ax.grid(alpha=0.3)
@@ -704,6 +715,57 @@ def diagnosis_figure(panels: Sequence[Mapping], title: str = "Discovery: where t
 # --- ISO 230-2 positioning test ---------------------------------------------
 _C_UP = "tab:blue"
 _C_DOWN = "tab:red"
+
+
+def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str = "µm", target_label: str = "target / mm",
+                                 outlier_rows: Sequence[int] = (),
+                                 title: str = "Residuals of the baseline model"):
+    """Discovery residuals of an ISO 230-2 test against time and target position, by approach direction.
+
+    The probe log's :func:`residuals_figure` draws against the approach angle, which a positioning test does not
+    have; here the second panel is the target, and the two approach directions are drawn apart (``+`` blue,
+    ``-`` red), as :func:`positioning_figure` draws them.
+
+    Parameters
+    ----------
+    t_s : (n,) float
+        Time of each reading (its order when the log has no clock), s.
+    target : (n,) float
+        Target position of each reading in the target unit (``target_label`` says it: mm, or ° for a rotary axis).
+    direction : (n,) int
+        Approach direction of each reading, +1 or -1.
+    residual : (n,) float
+        Residual of each reading's deviation, in ``unit`` (µm, or ″ for a rotary axis).
+    outlier_rows : sequence of int
+        The report's outlier rows (0-based), drawn as red crosses.
+    """
+    t = _arr("t_s", t_s, (-1,))
+    p = _arr("target", target, (-1,))
+    s = _arr("direction", direction, (-1,))
+    r = _arr("residual", residual, (-1,))
+    n = _same_len(t_s=t, target=p, direction=s, residual=r)
+    if not np.all(np.isin(s, (1, -1))):
+        raise ConfigError("direction: each reading's must be +1 or -1")
+    bad = np.zeros(n, bool)
+    rows = np.asarray(list(outlier_rows), dtype=int)
+    if rows.size and (rows.min() < 0 or rows.max() >= n):
+        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
+    bad[rows] = True
+    fig = _figure(9.0, 3.6)
+    ax1, ax2 = fig.subplots(1, 2, sharey=True)
+    for ax, xv, xl in ((ax1, t, "t / s"), (ax2, p, target_label)):
+        for d, c, name in ((1, _C_UP, "approach +"), (-1, _C_DOWN, "approach -")):
+            k = (s == d) & ~bad
+            ax.plot(xv[k], r[k], "." if d > 0 else "+", color=c, ms=4 if d > 0 else 5, label=name)
+        if bad.any():
+            ax.plot(xv[bad], r[bad], "x", color="k", ms=6, label="outlier rows")
+        ax.axhline(0.0, color=_C_NOMINAL, lw=0.8)
+        ax.set_xlabel(xl)
+        ax.grid(alpha=0.3)
+    ax1.set_ylabel(f"residual of the deviation / {unit}")
+    ax1.legend(fontsize="x-small")
+    fig.suptitle(title)
+    return fig
 
 
 def positioning_figure(report: Mapping, *, readings: Mapping | None = None,

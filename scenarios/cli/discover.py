@@ -6,7 +6,8 @@ from pathlib import Path
 
 # the library part (read, discover, check, write), shared with the regression studies; names kept here for callers
 from scenarios.discover_run import (_discover_positioning, _discover_probe_log, _is_positioning_log,  # noqa: F401
-                                    lobes_not_determined, run_discover, workpiece_form_change)
+                                    lobes_not_determined, magnitude_said, run_discover, unit_keys_back,
+                                    workpiece_form_change)
 
 
 def register(sub) -> None:
@@ -38,6 +39,15 @@ def _fmt(v, u=None, side=None) -> str:
     return "n/d" if v is None else str(v)
 
 
+def _said(cause: str, k: str, v, u, side, kind: str) -> str:
+    """A finding's parameter as printed: a fixed one with its unit and "(fixed)", an angle whose U95 reaches half
+    its circle "n/d (U95 reaches half the circle)" (scenarios.discover_run.magnitude_said), else :func:`_fmt`."""
+    m = magnitude_said(cause, k, v, u, kind)
+    if m is None:
+        return _fmt(v, u, side)
+    return f"{m[0]} (fixed)" if m[1] == "fixed" else f"{m[0]} (U95 {m[1]})"
+
+
 #: baseline kind -> (what its estimand is called, the noun of its rows) in the summary
 ESTIMAND_WORDS = {"planar": ("workpiece", "targets"),
                   "positioning": ("deviation", "means per target and direction")}
@@ -55,7 +65,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     if unit != "um":   # a rotary positioning test's report: arc seconds (core.baseline.positioning_report_units)
         from core.baseline import positioning_report_units
 
-        back = _unit_keys_back(rep, unit)
+        back = unit_keys_back(rep, unit)
         return [positioning_report_units(ln, unit) for ln in summary_lines(back, kind)]
     label, rows = ESTIMAND_WORDS[kind]
     b, nz = rep["baseline"], rep["noise_um"]
@@ -91,7 +101,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
         pu = f.get("params_u95", {})
         shown_params = list(f["params"].items())[:6]
         sides = f["evidence"].get("one_sided") or {}
-        params = ", ".join(f"{k} {_fmt(v, pu.get(k), sides.get(k))}" for k, v in shown_params)
+        params = ", ".join(f"{k} {_said(f['cause'], k, v, pu.get(k), sides.get(k), kind)}" for k, v in shown_params)
         flag = f" (ambiguous: {f['evidence'].get('confidence_reason', '')})" \
             if f["evidence"].get("confidence") == "ambiguous" else ""
         said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
@@ -124,17 +134,6 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
                                                  if kind == "planar" else ""))
             out.append(line)
     return out
-
-
-def _unit_keys_back(rep, unit: str):
-    """The report with its ``_<unit>`` keys named ``_um`` again (what :func:`summary_lines` reads), ``unit`` gone
-    from the baseline block; the values as they are."""
-    if isinstance(rep, dict):
-        return {(k.replace(f"_{unit}", "_um") if isinstance(k, str) else k): _unit_keys_back(v, unit)
-                for k, v in rep.items() if not (k == "unit" and v == unit)}
-    if isinstance(rep, list):
-        return [_unit_keys_back(v, unit) for v in rep]
-    return rep
 
 
 def run(args) -> int:

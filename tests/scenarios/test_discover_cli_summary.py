@@ -74,6 +74,29 @@ def test_u95_label_only_when_a_printed_parameter_has_one():
     assert f.endswith("p5 5 +- 0.5 (value +- U95, k = 2)")
 
 
+def test_a_fixed_parameter_and_an_undetermined_phase_are_said_so():
+    """audit35 N1, N2: a drift's ``over_h`` (the campaign's duration, context: its params_u95 0.0) was printed
+    "over_h 0.924 +- 0" as if fitted; a phase whose U95 the report withholds (it reaches half the circle, beside an
+    amplitude consistent with zero) was printed bare, "EYX_phase_rad -1.96", read as a measurement. A phase with
+    its U95 keeps it. The report page's magnitudes table says the same (scenarios.reports._magnitude_rows)."""
+    from scenarios.reports import _magnitude_rows
+
+    rep = _report(WP)
+    rep["findings"] = [
+        {"cause": "thermal_drift", "params": {"x_offset_change_um": 2.34, "over_h": 0.924},
+         "params_u95": {"x_offset_change_um": 0.5, "over_h": 0.0}, "evidence": {"confidence": "named"}},
+        {"cause": "periodic_axis_error", "params": {"axis": "X", "EXX_phase_rad": 0.0463, "EYX_phase_rad": -1.96},
+         "params_u95": {"axis": None, "EXX_phase_rad": 0.19, "EYX_phase_rad": None}, "evidence": {}}]
+    f = [ln for ln in summary_lines(rep) if ln.startswith("finding")]
+    assert f == ["finding    thermal_drift: x_offset_change_um 2.34 +- 0.5, over_h 0.924 h (fixed) (value +- U95, k = 2)",
+                 "finding    periodic_axis_error: axis X, EXX_phase_rad 0.0463 +- 0.19, EYX_phase_rad n/d (U95 reaches "
+                 "half the circle) (value +- U95, k = 2)"]
+    assert _magnitude_rows(rep, "planar") == [
+        ["thermal_drift", "x_offset_change_um", 2.34, 0.5], ["thermal_drift", "over_h", "0.924 h", "fixed"],
+        ["periodic_axis_error", "axis", "X", None], ["periodic_axis_error", "EXX_phase_rad", 0.0463, 0.19],
+        ["periodic_axis_error", "EYX_phase_rad", "n/d", "reaches half the circle"]]
+
+
 def test_an_iso230_2_test_says_deviation_not_workpiece():
     """On an ISO 230-2 log the estimand is the mean deviation per target and direction (ids such as
     'P=-295mm-'), not a workpiece: main printed 'workpiece  U95 max ... 22 targets'."""
@@ -234,6 +257,10 @@ def test_the_form_change_is_of_the_form_not_the_gauge(tmp_path, capsys):
     assert fc["max_abs_um"] < 0.5 * fc["raw_max_abs_um"]     # the drift moved the gauge, not (much) the form
     line = next(ln for ln in said.splitlines() if ln.startswith("workpiece"))
     assert f"largest change of the form {fc['value_um']:+.3f} um at {fc['target']}" in line
+    # the drift's campaign duration is context, printed with its unit and "(fixed)", not "+- 0" (audit35 N2)
+    drift = next(f for f in rep["findings"] if f["cause"] == "thermal_drift")
+    finding = next(ln for ln in said.splitlines() if ln.startswith("finding    thermal_drift"))
+    assert f"over_h {drift['params']['over_h']:.3g} h (fixed)" in finding and "+- 0," not in finding + ","
 
 
 def drift_log(tmp_path):
