@@ -307,7 +307,7 @@ from .exceptions import ConfigError, IdentifiabilityError, counted
 from .lsq import Basis, BlockDesign, DiagLowRank, _dense, group_sums, leverage, orth_of
 from .memo import Memo, kept_on
 from .touches import Touches
-from .units import UM
+from .units import MM, UM
 
 
 #: Format of :meth:`Discovery.to_report` (what ``vmt discover --json`` writes).
@@ -9472,6 +9472,72 @@ def _reading_u95(cause, bl, tm: Term, so: _State, rows, vals: dict, u95: dict, s
             "u95_chosen": {k: u95[k] for k in grown}, "carried_in_u95": grown, "u95": new}
 
 
+#: A ``local_scale_defect``'s centre in words (``vmt discover``'s summary prints it under the finding): the bump is
+#: a function of the machine's axis position, read at each touch's nominal contact point as the log gives it
+#: (``Xn_mm``, ``Yn_mm``: the machine frame R, the error map's own), not a place on the part. A user reading "centre
+#: 52.6 mm on Y" reads the Y axis at 52.6 mm on the machine's scale (session 35, cat35).
+DEFECT_CENTRE_FRAME = ("the machine's {axis} axis position in mm, the frame of the log's nominal contact points "
+                       "(Xn_mm, Yn_mm: the machine frame, the error map's own; not a place on the part)")
+#: Two bump columns are one reading when their parts outside the model differ by at most this share of the bump's
+#: own part (:func:`_defect_centre_images`): the same fit within rounding (an exact image differs by 1e-15 or so; a
+#: bump elsewhere by an order one share).
+DEFECT_IMAGE_REL = 1e-6
+
+
+def _defect_centre_images(bl, tm, so, rows) -> list:
+    """The other bumps the design cannot tell from ``tm``'s (a ``local_scale_defect`` term; ``so`` the model
+    without it on ``rows``): its images under the table's quarter turns about the C axis (``bl.data.c0_m``).
+
+    A part symmetric under a turn by 180 deg (or 90), measured only at C angles that differ by that turn, has a
+    touch at every image of a touch's position, on the target the turn maps it onto, along the normal turned with
+    it; a bump of one axis at ``q`` then moves the same targets' readings, set-up against set-up, as the bump at
+    its image (the same axis at ``2 c0 - q`` for the half turn; the other axis for a quarter turn), which the
+    targets' parameters and the set-ups' own terms cannot tell apart: both columns have the same part outside
+    the model (gen_a local_scale_defect 1121, hexagon-pocket-sym at C 0 and 180 deg: the truth at Y -52.77 mm,
+    the report at +52.59 mm, the two parts outside the baseline equal to rounding). The quarter turns' images (a
+    four-fold part turned by 90 deg) are checked too; on gen_a's octagon-pocket-sym campaigns 1017, 1065, 1078,
+    1091 none is one reading with the bump (each reported centre within its U95 of the drawn one). Each image
+    (its axis, centre in mm, the turn, and the sign its amplitude takes) whose part outside ``so`` differs from
+    the bump's by at most :data:`DEFECT_IMAGE_REL` of it, either sign, is returned; none where the C-axis centre
+    is unknown. The centre's U95 (the profile's, about the centre reported) holds about each image alike.
+    """
+    d = bl.data
+    c0 = np.asarray(d.c0_m, float)
+    if c0.shape != (2,) or not np.all(np.isfinite(c0)) or not isinstance(so.Q, np.ndarray):
+        return []
+    ax = "XY".index(tm.info["axis"])
+    q, w = float(tm.info["centre_m"]), float(tm.info["half_width_m"])
+    u = q - c0[ax]
+    # the line {p_ax = q} turned about c0 by 90, 180 and 270 deg (counter-clockwise): (axis, centre) of its image
+    images = ({0: ((1, c0[1] + u), (0, c0[0] - u), (1, c0[1] - u)),
+               1: ((0, c0[0] - u), (1, c0[1] - u), (0, c0[0] + u))}[ax])
+    Q = so.Q
+
+    def outside(C):
+        v = np.asarray(_white(bl, C), float)[rows]
+        return v - Q @ (Q.T @ v)
+
+    own = outside(causes_mod._defect_cols(d, ax, q, w)[0])[:, 0]
+    n_own = float(np.linalg.norm(own))
+    if not n_own > 0:
+        return []
+    out = []
+    for turn, (a2, q2) in zip((90, 180, 270), images):
+        if abs(q2 - q) <= 1e-9 and a2 == ax:
+            continue  # the bump is its own image (centred on the C axis)
+        img = outside(causes_mod._defect_cols(d, a2, q2, w)[0])[:, 0]
+        for sign in (1.0, -1.0):
+            if np.linalg.norm(own - sign * img) <= DEFECT_IMAGE_REL * n_own:
+                out.append({"axis": "XY"[a2], "centre_mm": q2 / MM, "turn_deg": turn,
+                            "amplitude_sign": "same" if sign > 0 else "opposite",
+                            "text": f"the design cannot tell this bump from one on the {'XY'[a2]} axis at "
+                                    f"{q2 / MM:.4g} mm (its image under a {turn} deg turn about the C axis at "
+                                    f"X {c0[0] / MM + 0.0:.2f}, Y {c0[1] / MM + 0.0:.2f} mm): both fit the touches "
+                                    "alike"})
+                break
+    return out
+
+
 def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted, smooth, cv_named, bases,
               seen=(), fixed=None, repeats=None, folds=None, confounded=()) -> list:
     out = []
@@ -9563,6 +9629,12 @@ def _findings(bl, terms, Qb, y, rows, st, settings, structure_e, diag_e, demoted
             ev["profile_at_grid_edge"] = edges
         if one_sided:
             ev["one_sided"] = {k: x[0] for k, x in one_sided.items()}
+        if tm.cause == "local_scale_defect" and bl.kind == "planar" and "centre_m" in tm.info:
+            # the centres the design cannot tell from the one reported (session 35, cat35; its frame in words:
+            # DEFECT_CENTRE_FRAME, printed by the command's summary and said in docs/discovery.md)
+            images = _defect_centre_images(bl, tm, so, rows)
+            if images:
+                ev["centre_images"] = images
         if tm.weak:
             ev["not_identifiable_directions"] = int(tm.weak)
         if beside_smooth is not None:
