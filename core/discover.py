@@ -1381,10 +1381,13 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
 #: alone, and taken as the second search's causes are (fewer outliers left beside it, seen on the touches the
 #: screen kept). A part change early in a campaign whose feature is touched a few times (gen_a part_change 1010,
 #: 1080, 1092: 3 targets of one wall or bore in 3-5 set-ups) is carried by the first set-up's touch or touches, whose
-#: deviation from their targets' later touches the screen sets aside before part_change is tried; beside the
-#: features' count (about 30 trials of 58-74 over every feature and form) part_change is then not significant.
-#: Built and left off: docs/discovery.md, "Session 35: a part change carried by one touch, and the frame of gen_a's
-#: defect centres (cat35)".
+#: deviation from their targets' later touches the screen sets aside before part_change is tried; counted over every
+#: feature, layout and form (58-74 trials, times the causes) part_change is then not adopted with it back. Built and
+#: left off: it mends none of the three (1010, 1092: the other touches predict the touch's sign at p 0.015 and
+#: 0.004 before the count of 12; 1080 passes, then part_change's linear time forms lose held-out on a change that
+#: settled) and changed no reading on 390 tuning campaigns (gen_a part_change, outlier, local_scale_defect, none,
+#: knock, reseat_hysteresis; gen_b and gen_c outlier, part_change): docs/discovery.md, "Session 35: a part change
+#: carried by one touch, and the frame of gen_a's defect centres (cat35)".
 PART_CHANGE_OUTLIER_LOOK = False
 
 
