@@ -157,3 +157,27 @@ def test_the_look_needs_one_feature():
     A, y, kept, base, feats, scans = _campaign(np.random.default_rng(1), 3.0, 0.0)
     kept = np.setdiff1d(kept, [5])  # a touch of feature v set aside too
     assert D._part_change_outlier_look(A, y, kept, base, feats, scans, alpha=0.0025) is None
+
+
+def test_the_look_on_a_tuning_miss_fires_and_part_change_still_loses_held_out(monkeypatch):
+    """gen_a part_change 1080 (bore3 ovalising, tau 730 s of a 2560 s campaign; the first set-up's two touches
+    set aside): with the look on it fires (the other touches predict the two touches' signs, p 5.4e-6 after its
+    count of 4), part_change is searched again on every row with bore3's layouts alone, and is refused there as
+    it is without the look: its linear time forms lose held-out (gain below zero) on a change that settled. The
+    reading stays `outlier?`, and the catalogue's scans are the run's own again after the look (the second run
+    off reads the same)."""
+    from scenarios.blind import gen_a
+
+    log, _ = gen_a.generate("part_change", 1080)
+    seen = []
+    look = D._part_change_outlier_look
+    monkeypatch.setattr(D, "_part_change_outlier_look", lambda *a, **k: seen.append(look(*a, **k)) or seen[-1])
+    monkeypatch.setattr(D, "PART_CHANGE_OUTLIER_LOOK", True)
+    rep = discovered(log).to_report()
+    assert len(seen) == 1 and seen[0] is not None
+    assert seen[0]["feature"] == "bore3" and seen[0]["rows"] == [59, 60] and seen[0]["p"] < 1e-4
+    assert rep["cause"] == "outlier" and rep["outlier_rows"] == [59, 60]
+    assert any(r["cause"] == "part_change" and "cross-validated gain" in r["reason"] for r in rep["rejected"])
+    monkeypatch.setattr(D, "PART_CHANGE_OUTLIER_LOOK", False)
+    off = discovered(log).to_report()
+    assert off["cause"] == rep["cause"] and off["outlier_rows"] == rep["outlier_rows"]
