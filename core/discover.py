@@ -1384,8 +1384,8 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
 #: deviation from their targets' later touches the screen sets aside before part_change is tried; counted over every
 #: feature, layout and form (58-74 trials, times the causes) part_change is then not adopted with it back. Built and
 #: left off: it mends none of the three (1010, 1092: the other touches predict the touch's sign at p 0.015 and
-#: 0.004 before the count of 12; 1080 passes, then part_change's linear time forms lose held-out on a change that
-#: settled) and changed no reading on 390 tuning campaigns (gen_a part_change, outlier, local_scale_defect, none,
+#: 0.004 before the count of 12; 1080 passes, then part_change loses held-out as without the look, on a change
+#: that settled early) and changed no reading on 390 tuning campaigns (gen_a part_change, outlier, local_scale_defect, none,
 #: knock, reseat_hysteresis; gen_b and gen_c outlier, part_change): docs/discovery.md, "Session 35: a part change
 #: carried by one touch, and the frame of gen_a's defect centres (cat35)".
 PART_CHANGE_OUTLIER_LOOK = False
