@@ -1919,6 +1919,32 @@ class Truth:
         """Target id -> true normal deviation (um) at the start of the campaign."""
         return dict(zip(self.targets, (float(v) for v in self.workpiece_um)))
 
+    def defect_centres_mm(self) -> tuple:
+        """A ``local_scale_defect``'s true centre and the centre the design cannot tell from it: ``((axis,
+        centre_mm), ...)``, the drawn one first; empty for another effect.
+
+        The frame is the engine's (``core.discover``'s ``evidence.centre_frame``): the machine's axis position, the
+        frame of the log's nominal contact points ``Xn_mm``, ``Yn_mm``, which is where the defect is drawn (its
+        centre near a touch's ``Xn`` along the axis). A part of even symmetry measured only at C angles 180 deg
+        apart (every set-up at C or C + 180, a schedule :func:`_identifiable` calls not identifiable) has a touch
+        at every position's image under the half turn about the C axis (``centre_mm``), on the target the turn
+        maps onto, its normal reversed: a bump of the same axis at ``2 c - q`` moves the readings as the drawn one
+        does beside the targets' and set-ups' own terms (gen_a local_scale_defect 1121: the two columns' parts
+        outside the baseline equal to rounding), so no discovery can tell which one the machine has; that image
+        follows the drawn centre. A four-fold part turned by quarter turns leaves no single image so (1017, 1065,
+        1078, 1091: none found by the engine, each reported centre within its U95 of the drawn one): none is
+        listed there (session 35, cat35).
+        """
+        if self.effect != "local_scale_defect" or "centre_mm" not in self.params:
+            return ()
+        ax = "XY".index(self.params["axis"])
+        q = float(self.params["centre_mm"])
+        out = [(self.params["axis"], q)]
+        diff = np.mod(np.asarray(self.schedule_deg, float) - self.schedule_deg[0], 360.0)
+        if self.symmetry % 2 == 0 and np.all(np.abs((diff + 1e-9) % 180.0) < 1e-6):
+            out.append((self.params["axis"], float(2 * np.asarray(self.centre_mm, float)[ax] - q)))
+        return tuple(out)
+
 
 def _acceptable(effect: str, draw: _Draw) -> tuple:
     if draw.acceptable is not None:

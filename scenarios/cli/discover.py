@@ -59,7 +59,7 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     ``kind`` is the baseline's (``planar``: a probe-log campaign, its estimand the workpiece;
     ``positioning``: an ISO 230-2 test, its estimand the mean deviation per target and direction).
     """
-    from core.discover import LEFT_OUT_NOTE, cv_ratio_text, not_counted_words
+    from core.discover import DEFECT_CENTRE_FRAME, LEFT_OUT_NOTE, cv_ratio_text, not_counted_words
 
     unit = (rep.get("baseline") or {}).get("unit", "um")
     if unit != "um":   # a rotary positioning test's report: arc seconds (core.baseline.positioning_report_units)
@@ -106,6 +106,11 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
             if f["evidence"].get("confidence") == "ambiguous" else ""
         said_u95 = " (value +- U95, k = 2)" if any(isinstance(pu.get(k), float) for k, _ in shown_params) else ""
         out.append(f"finding    {f['cause']}{flag}: {params or f['evidence'].get('text', '')}{said_u95}")
+        if f["cause"] == "local_scale_defect" and isinstance(f["params"].get("axis"), str):
+            # a bump's centre: of what (session 35), and the images of it the design cannot tell from it
+            out.append("           centre_mm: " + "; ".join(
+                [DEFECT_CENTRE_FRAME.format(axis=f["params"]["axis"])]
+                + [im["text"] for im in f["evidence"].get("centre_images") or ()]))
     nd = rep.get("not_determined")
     if nd and nd.get("pretravel_lobe_orders"):
         out.append(f"not seen   pre-travel lobes k = {', '.join(map(str, nd['pretravel_lobe_orders']))}: absorbed by"

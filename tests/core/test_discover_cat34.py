@@ -40,8 +40,9 @@ def test_a_narrow_defect_read_as_a_period_is_named_on_its_axis():
     its positions along Y 2.5 mm apart on average. At the floor of two spacings: `periodic_axis_error?` (the
     bump's narrowest trial 8.8 mm). Now `local_scale_defect` first, on Y, its half-width within twice the
     truth's (the refined width 3.6 mm) and its peak within a fifth of the generator's (9.6 against 9.9 um).
-    (Its centre is reported in the design's coordinates about the C axis, which this symmetric part's set-ups
-    turned by 180 deg put on the other side: compared by its size only.) Still ambiguous, with `outlier` among
+    (Its centre is compared by its size only: this symmetric part, measured at C 0 and 180 deg only, cannot tell
+    the bump from its image about the C axis, and the report gives +52.6 mm with the image -52.6 listed, the
+    generator -52.8: tests/core/test_discover_cat35.py, session 35.) Still ambiguous, with `outlier` among
     the alternatives: the bump's touches are one wall's."""
     rep, truth = _report(1121)
     f = rep["findings"][0]
@@ -55,7 +56,7 @@ def test_a_narrow_defect_read_as_a_period_is_named_on_its_axis():
 
 
 def test_a_narrow_defect_left_unexplained_is_named_where_the_generator_put_it():
-    """gen_a local_scale_defect 1293 (octagon-pocket, not turned: the design's coordinates are the generator's): a
+    """gen_a local_scale_defect 1293 (octagon-pocket, no symmetry: its centre determined, the generator's frame): a
     6.2 um bump of 3.0 mm half-width on X. At the floor of two spacings: `unexplained`, confident. Now
     `local_scale_defect` first, on X, its centre within a quarter of the true half-width (the scan's step between
     centres), its half-width and peak amplitude within their U95 of the generator's (the known answer:
