@@ -11163,7 +11163,7 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
 #: (earn35, audit35's F4): gen_a knock 0, a smooth in ``feature`` at x0.92 (95 %: 0.33-2.58) moved the workpiece
 #: 0.99 -> 1.90 um against the truth, U95 max 5.6 -> 55.3 um. Off, and not proposed: on 256 tuning campaigns with an
 #: extension it withholds 55 extended workpieces, 38 of them better than the baseline's (20.1 um of error in sum), 7
-#: worse (1.0 um): the smooth's gain is uncertain over four or five set-ups while its workpiece is right
+#: worse (1.0 um): the smooth's gain is uncertain over a campaign's few set-ups while its workpiece is right
 #: (docs/discovery.md, "Session 35: an extended workpiece offered only when earned").
 SMOOTH_WORKPIECE_EARNED = False
 
