@@ -2808,6 +2808,12 @@ class Discovery:
     structure: dict = field(default_factory=dict)
     rejected: tuple = ()
     cv_rms_ratio_95: list | None = None
+    #: why the extended workpiece is not offered as the estimate (:data:`SMOOTH_WORKPIECE_EARNED`,
+    #: :data:`WORKPIECE_U95_GROWTH_WITHHELD`), None where it is; the extended fit's own estimate and covariance then kept
+    #: here (the report's ``extended_um`` null, its rows' ``extended_fit_um``)
+    workpiece_not_offered: dict | None = None
+    G_extended_fit_m: np.ndarray | None = field(default=None, repr=False)
+    cov_G_extended_fit: np.ndarray | DiagLowRank | None = field(default=None, repr=False)
 
     @property
     def cause(self) -> str:
@@ -2842,6 +2848,8 @@ class Discovery:
             "rejected": list(self.rejected),
             "conventions": list(self.conventions),
         }
+        if self.workpiece_not_offered is not None:  # (the key only where the rule withheld it: reports unchanged)
+            rep["workpiece_not_offered"] = {k: v for k, v in self.workpiece_not_offered.items() if k != "text"}
         # (a positioning run's report in its words, cycles and readings, and a rotary one's in arc seconds: session 31)
         return bl_mod.positioning_report(rep, b)
 
@@ -3781,6 +3789,18 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         alternatives=alt_cols if NAMED_ALTERNATIVE_SHIFT_CARRIED or rejudged else None, beside_kept=shared,
         named=named_shift,
         richer=richer_cols or None, forms=form_cols or None, without=without or None, determined=det_cols or None)
+    # the extended workpiece not offered where the extension has not earned it (SMOOTH_WORKPIECE_EARNED,
+    # WORKPIECE_U95_GROWTH_WITHHELD; both off): the finding and its diagnosis stay, the baseline's workpiece is the estimate
+    unearned = _workpiece_unearned(terms, folds, y, rows, bl.groups, cv_e, held_e, wp,
+                                   _u95_gauge_free(bl, Gb, Ge, cGb, cGe) if WORKPIECE_U95_GROWTH_WITHHELD else None) \
+        if SMOOTH_WORKPIECE_EARNED or WORKPIECE_U95_GROWTH_WITHHELD else None
+    Ge_fit = cGe_fit = None
+    if unearned is not None and not unearned["withheld"]:
+        unearned = None
+    if unearned is not None:
+        Ge_fit, cGe_fit = Ge, cGe
+        wp = _withheld_rows(wp)
+        Ge, cGe = np.full_like(Ge, np.nan), None
     if named_shift:
         for f in findings:
             if f.cause in named_shift:
@@ -3879,8 +3899,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                         f"{fig['shift_rms_um']:.3g} um RMS (form only) from {c}'s reading, {fmt_p(fig['p'])} against "
                         f"its own scatter: real, and {c} a choice the data doubt: the extended U95 carries the "
                         "shift (u = |shift| / 2 per target)")
+    if unearned is not None:
+        conv.append(unearned["text"])
     lost = [w["target"] for w in wp if w["baseline_um"] is not None and w["extended_um"] is None]
-    if lost:
+    if lost and unearned is None:
         conv.append(f"extended workpiece not reported at {len(lost)} target(s) (e.g. {lost[0]}): the data alone "
                     "do not determine it beside " + ", ".join(t.cause if not t.unnamed else
                                                                f"the unnamed smooth in {t.covariate}" for t in terms))
@@ -3900,7 +3922,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
         structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected),
-        cv_rms_ratio_95=_ratio_interval(held_b, held_e, float(np.sqrt(cv_e / cv_b)) if cv_b > 0 else float("nan")))
+        cv_rms_ratio_95=_ratio_interval(held_b, held_e, float(np.sqrt(cv_e / cv_b)) if cv_b > 0 else float("nan")),
+        workpiece_not_offered=unearned, G_extended_fit_m=Ge_fit, cov_G_extended_fit=cGe_fit)
 
 
 # ---------------------------------------------------------------------------
@@ -11343,6 +11366,114 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
         return outliers[:0]
     tgt = np.asarray(t.target)
     return outliers[np.isin(tgt[outliers], tgt[np.asarray(rows, int)])]
+
+
+#: Whether the extended workpiece beside an unnamed smooth is offered as the estimate only when the smooth has earned
+#: its held-out gain beyond doubt (True): the 95 % interval of the held-out RMS ratio of the extended model with the
+#: smooth to the same model without it (:func:`_ratio_interval`, the jackknife over set-ups) lies below 1. Where it
+#: reaches 1 ("no gain" inside it) the finding, its diagnosis and the smooth's fit stay, and the report's extended
+#: workpiece is null (the extended fit's own under ``extended_fit_um``), the baseline's the estimate, the reason in
+#: ``workpiece_not_offered`` and the summary. The smooth is adopted on the point estimate of its held-out gain against
+#: materiality (step 6); that is the threshold for reporting structure, not for moving the workpiece by an effect
+#: without physics. Without an interval (no cross-validation, fewer than three set-ups) it does not apply. Session 35
+#: (earn35, audit35's F4): gen_a knock 0, a smooth in ``feature`` at x0.92 (95 %: 0.33-2.58) moved the workpiece
+#: 0.99 -> 1.90 um against the truth, U95 max 5.6 -> 55.3 um. Off, and not proposed: on 256 tuning campaigns with an
+#: extension it withholds 55 extended workpieces, 38 of them better than the baseline's (20.1 um of error in sum), 7
+#: worse (1.0 um): the smooth's gain is uncertain over a campaign's few set-ups while its workpiece is right
+#: (docs/discovery.md, "Session 35: an extended workpiece offered only when earned").
+SMOOTH_WORKPIECE_EARNED = False
+
+#: Whether the extended workpiece is offered as the estimate only where its U95 has not grown beyond
+#: :data:`WORKPIECE_U95_GROWTH_MAX` times the baseline's (True), both the RMS over the targets of the U95 (k = 2)
+#: outside the part's gauge (its translation, rotation and size: :func:`core.selfcal.workpiece_gauge_basis`, as the
+#: blind harness scores it and :func:`_u95_rms` judges the finer map; the per-target U95 of the report depends on the
+#: map's gauge, and its largest value mostly measures that). Beyond it the baseline's workpiece is the estimate, as with
+#: :data:`SMOOTH_WORKPIECE_EARNED`. The extended U95 grows where it carries a real workpiece shift of a reading the
+#: data do not determine (an unnamed smooth's split, an inflated direction's, a hedged term's: u = |shift| / 2 per
+#: target); three times the baseline's means the extension moved the part by about three of the baseline's own U95
+#: on that assumption, and its interval holds the baseline's answer and more: an estimate the report cannot vouch for.
+#: Session 35 (earn35): over 256 tuning campaigns with an extension and both workpieces reported, the ratio exceeds
+#: 3 once (gen_a feed_latency 1009, 4.75: part_change? read, 13.61 um from the truth against the baseline's 4.96),
+#: besides gen_a knock 0 (5.5, audit35's F4); the next are 2.85 (gen_c speed_pretravel 11, which mends the workpiece
+#: 1.04 -> 0.65 um) and 2.25 (gen_a feed_latency 1003, 3.49 -> 0.47 um); no extended workpiece that mends the
+#: baseline's is withheld, readings and confidence never move (the rule acts after them): docs/discovery.md,
+#: "Session 35: an extended workpiece offered only when earned". Proposed on; off while the lead's blind check runs.
+WORKPIECE_U95_GROWTH_WITHHELD = False
+#: :data:`WORKPIECE_U95_GROWTH_WITHHELD`'s factor.
+WORKPIECE_U95_GROWTH_MAX = 3.0
+
+
+def _u95_growth(wp) -> tuple | None:
+    """(largest extended U95, largest baseline U95, their ratio) over the targets both report, um; None if none."""
+    w = [r for r in wp if r.get("extended_u95_um") is not None and r.get("baseline_u95_um") is not None]
+    if not w:
+        return None
+    e, b = max(r["extended_u95_um"] for r in w), max(r["baseline_u95_um"] for r in w)
+    return e, b, (e / b if b > 0 else float("inf"))
+
+
+def _u95_gauge_free(bl: Baseline, Gb, Ge, cGb, cGe) -> tuple | None:
+    """(extended, baseline) RMS over the targets both determine of the workpiece's U95 (k = 2) outside the part's
+    gauge, um (:data:`WORKPIECE_U95_GROWTH_WITHHELD`); None without geometry, formed covariances or six targets."""
+    geo = getattr(bl, "geometry", None)
+    if geo is None or not isinstance(cGb, np.ndarray) or not isinstance(cGe, np.ndarray):
+        return None
+    keep = np.isfinite(np.asarray(Gb, float)) & np.isfinite(np.asarray(Ge, float))
+    if keep.sum() < 6 or len(keep) != len(geo[0]):
+        return None
+    Pm = lsq_mod.remove_span(np.eye(int(keep.sum())), selfcal.workpiece_gauge_basis(geo[0][keep], geo[1][keep]))
+
+    def rms(C):
+        C = C[np.ix_(keep, keep)]
+        return float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
+
+    return rms(cGe), rms(cGb)
+
+
+def _workpiece_unearned(terms, folds, y, rows, groups, cv_e: float, held_e, wp, gauge_free=None) -> dict | None:
+    """Whether the extended workpiece is offered: the figures of :data:`SMOOTH_WORKPIECE_EARNED` and
+    :data:`WORKPIECE_U95_GROWTH_WITHHELD`, ``withheld`` True where a rule that is on says no (with its ``reason``,
+    ``rule`` and a convention line ``text``); None without an extension. ``gauge_free`` the (extended, baseline)
+    U95 of :func:`_u95_gauge_free`, or None."""
+    if not terms:
+        return None
+    out = {"withheld": False}
+    texts, rules = [], []
+    smooth = [t for t in terms if t.unnamed and t.columns.shape[1]]
+    if smooth:
+        named = [t for t in terms if not (t.unnamed and t.columns.shape[1])]
+        E_n = _stack(named, rows) if named else None
+        cv_n, held_n = _held_out(folds, y[rows], groups[rows], E_n, _penalty(named) if named else None)
+        ratio = float(np.sqrt(cv_e / cv_n)) if cv_n > 0 else float("nan")
+        iv = _ratio_interval(held_n, held_e, ratio)
+        out["smooth"] = {"covariate": smooth[0].covariate, "cv_rms_ratio": ratio, "cv_rms_ratio_95": iv}
+        if SMOOTH_WORKPIECE_EARNED and iv is not None and iv[1] >= 1.0:
+            rules.append("smooth_gain_interval")
+            texts.append(f"the unnamed smooth in {smooth[0].covariate} has not earned its held-out gain beyond doubt "
+                         f"(held-out RMS x{ratio:.2f} beside it, 95 %: {iv[0]:.2f}-{iv[1]:.2f}, reaching 1: no gain)")
+    g = _u95_growth(wp)
+    if g is not None:
+        out["u95_max_um"] = {"baseline": g[1], "extended": g[0], "ratio": g[2]}
+    if gauge_free is not None:
+        e, b = gauge_free
+        r = e / b if b > 0 else float("inf")
+        out["u95_rms_gauge_free_um"] = {"baseline": b, "extended": e, "ratio": r}
+        if WORKPIECE_U95_GROWTH_WITHHELD and r > WORKPIECE_U95_GROWTH_MAX:
+            rules.append("u95_growth")
+            texts.append(f"its U95 ({e:.3g} um RMS over the targets, the part's gauge removed) is {r:.3g} times the "
+                         f"baseline's ({b:.3g} um), beyond {WORKPIECE_U95_GROWTH_MAX:g}")
+    if rules:
+        out.update(withheld=True, rule="+".join(rules), reason="; ".join(texts))
+        out["text"] = ("extended workpiece not offered as the estimate: " + out["reason"] +
+                       "; the baseline's workpiece is the estimate (the extended fit's under extended_fit_um)")
+    return out
+
+
+def _withheld_rows(wp) -> list:
+    """The workpiece rows with the extended estimate withheld: ``extended_um`` and its U95 null, the fit's own kept
+    under ``extended_fit_um`` and ``extended_fit_u95_um``."""
+    return [{**r, "extended_um": None, "extended_u95_um": None, "extended_fit_um": r["extended_um"],
+             "extended_fit_u95_um": r["extended_u95_um"]} for r in wp]
 
 
 def _workpiece(bl: Baseline, terms, y, rows, st0, st, alpha: float = 0.01, doubted=None, alternatives=None,

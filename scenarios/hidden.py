@@ -543,6 +543,10 @@ class Outcome:
         its cause on this design (``ambiguous_with``; it is then flagged
         ambiguous): scored apart (``catalogue_alternative``), never as the
         cause itself.
+    wp_u95_base_um : float
+        RMS over targets of the baseline workpiece's U95 after the same
+        removal (NaN when not reported): the reference the extended U95's
+        growth is judged against (session 35).
     shift_carried : bool
         The extended U95 carries the real shift of an unnamed smooth (then
         it reaches the baseline's answer at every target, and the check
@@ -568,6 +572,7 @@ class Outcome:
     identifiable: bool = True
     shift_carried: bool = False
     alternatives: tuple = ()
+    wp_u95_base_um: float = float("nan")
 
 
 def catalogue_names() -> set:
@@ -600,7 +605,7 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
     bl = d.baseline
     n, p = bl.n, rep["baseline"]["n_params"]
     eff2 = rep["baseline"]["rms_um"] ** 2 - noise_um ** 2 * (n - p) / n
-    wb = we = wu = float("nan")
+    wb = we = wu = wub = float("nan")
     if g_true is not None and d.G_baseline_m is not None:
         ids = list(bl.estimand_ids)
         keep = np.array([k in g_true for k in ids])
@@ -617,13 +622,20 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
                 return float(np.sqrt(np.mean(e ** 2))) / UM if np.all(np.isfinite(e)) else float("nan")
 
             wb, we = err(d.G_baseline_m), err(d.G_extended_m)
+            Pm = remove_span(np.eye(int(keep.sum())), B)
+
+            def u95(G, cov):
+                if cov is None or not np.all(np.isfinite(G[keep])):
+                    return float("nan")
+                C = cov[np.ix_(keep, keep)]
+                return float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
+
             # the extended workpiece's U95 whenever it is reported as an estimate
             # (also on designs the generator calls unidentifiable: the check
             # must see an extension that moves the workpiece there too)
-            if d.cov_G_extended is not None and np.all(np.isfinite(d.G_extended_m[keep])):
-                Pm = remove_span(np.eye(int(keep.sum())), B)
-                C = d.cov_G_extended[np.ix_(keep, keep)]
-                wu = float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0)))) / UM
+            wu = u95(d.G_extended_m, d.cov_G_extended)
+            # (the reference its growth is judged against; a long log's factored covariance left out)
+            wub = u95(d.G_baseline_m, d.cov_G_baseline) if isinstance(d.cov_G_baseline, np.ndarray) else wub
     conf = not any(f["evidence"].get("confidence") == "ambiguous" for f in rep["findings"][:1])
     vis = float(visible_sigmas) if visible_sigmas is not None else float(np.sqrt(max(eff2, 0.0)) / noise_um)
     vis_gen = float(visible_sigmas) if visible_sigmas is not None else float("nan")
@@ -635,7 +647,7 @@ def run_campaign(generator: str, effect: str, seed: int, log, acceptable, g_true
     alts = tuple(rep["findings"][0]["evidence"].get("ambiguous_with") or ()) if rep["findings"] else ()
     return Outcome(generator, effect, int(seed), tuple(acceptable), rep["cause"],
                    tuple(f["cause"] for f in rep["findings"]), bool(conf), vis, float(noise_um), wb, we, wu, dt,
-                   vis_gen, angle, bool(identifiable), bool(carried), alts)
+                   vis_gen, angle, bool(identifiable), bool(carried), alts, wub)
 
 
 def effect_outside_baseline(bl, e_m: np.ndarray, noise_m: float) -> tuple[float, float]:

@@ -120,6 +120,11 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
                f"(x{g['rms_ratio']:.2f}), cv rms {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")
     if not rep["workpiece_identifiable"] and rep.get("workpiece") is not None:
         out.append(f"{label:10s} not identifiable by this design (reported as null)")
+    elif rep.get("workpiece_not_offered"):  # (core.discover.SMOOTH_WORKPIECE_EARNED, WORKPIECE_U95_GROWTH_WITHHELD)
+        no = rep["workpiece_not_offered"]
+        u = no.get("u95_max_um") or {}
+        out.append(f"{label:10s} extended estimate not offered: {no['reason']}; the baseline's is the estimate"
+                   + (f" (U95 max {u['baseline']:.3f} um; the extended fit's {u['extended']:.3f} um)" if u else ""))
     elif rep.get("workpiece") and rep["findings"]:
         w = [r for r in rep["workpiece"] if isinstance(r.get("extended_u95_um"), float)
              and isinstance(r.get("baseline_u95_um"), float)]

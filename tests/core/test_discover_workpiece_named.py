@@ -30,6 +30,7 @@ def _fl1009():
 def test_gen_a_feed_latency_1009_workpiece_within_its_check_with_the_alternative_carried(monkeypatch):
     # measured and left off (it inflates covering U95s where the name is right: docs/discovery.md, session 22)
     monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", True)
+    monkeypatch.setattr(D, "WORKPIECE_U95_GROWTH_WITHHELD", False)  # (the extended estimate offered: session 35)
     o = _fl1009()
     assert o.cause == "part_change" and not o.confident  # the decision this rule does not touch
     assert o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o
@@ -38,6 +39,7 @@ def test_gen_a_feed_latency_1009_workpiece_within_its_check_with_the_alternative
 @pytest.mark.slow
 def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(monkeypatch):
     monkeypatch.setattr(D, "NAMED_ALTERNATIVE_SHIFT_CARRIED", False)
+    monkeypatch.setattr(D, "WORKPIECE_U95_GROWTH_WITHHELD", False)  # (the extended estimate offered: session 35)
     o = _fl1009()
     assert o.cause == "part_change" and not o.confident
     # session 32: the hedged part_change's own shift (HEDGED_SHIFT_CARRIED, on) covers it: 13.61 <= 4.96 + 14.30
@@ -46,6 +48,18 @@ def test_gen_a_feed_latency_1009_fails_with_the_name_taken_as_true_the_default(m
     monkeypatch.setattr(D, "FINE_SHIFT_CARRIED", False)  # (its hedged 6.78 mm periodic term's shift, session 34)
     o = _fl1009()
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 21's engine: 13.61 > 4.96 + 7.28
+
+
+@pytest.mark.slow
+def test_gen_a_feed_latency_1009_extended_workpiece_not_offered_beyond_its_u95_growth(monkeypatch):
+    """Session 35 (earn35): the one tuning campaign of 256 whose extended U95 (RMS outside the part's gauge) exceeds
+    three times the baseline's: 15.33 um against 3.23 (x4.75), the estimate 13.61 um from the truth against the
+    baseline's 4.96, within its check by that U95 alone. With WORKPIECE_U95_GROWTH_WITHHELD (off) it is not
+    offered; the finding is unchanged."""
+    monkeypatch.setattr(D, "WORKPIECE_U95_GROWTH_WITHHELD", True)
+    o = _fl1009()
+    assert o.cause == "part_change" and not o.confident
+    assert o.wp_ext_um != o.wp_ext_um and abs(o.wp_base_um - 4.96) < 0.01, o  # (NaN: withheld; the baseline's stays)
 
 
 @pytest.mark.slow

@@ -207,12 +207,92 @@ def test_an_effect_outside_the_catalogue_with_a_catalogue_reading_is_scored_outs
     assert (s["confident_misnamed_catalogue"]["k"], s["confident_misnamed_catalogue"]["n"]) == (1, 1)
 
 
+#: The largest factor by which the extended workpiece's U95 may exceed the baseline's (``Outcome.wp_u95_um`` over
+#: ``wp_u95_base_um``, both RMS over the targets outside the part's gauge) in the check below: without a bound a U95
+#: that grows with the damage always passes "never worse than the baseline beyond its U95". Session 35 (earn35): of
+#: 256 tuning campaigns (gen_a, gen_b, gen_c) with an extension and both workpieces reported, one exceeds 3 (gen_a
+#: feed_latency 1009, x4.75, its workpiece 13.6 um from the truth against the baseline's 4.96); the next are x2.85
+#: (gen_c speed_pretravel 11, whose extension mends the workpiece 1.04 -> 0.65 um) and x2.25 (gen_a feed_latency
+#: 1003, 3.49 -> 0.47 um); 5 exceed x2, 28 x1.5. The same factor as core.discover.WORKPIECE_U95_GROWTH_MAX
+#: (docs/discovery.md, "Session 35: an extended workpiece offered only when earned").
+U95_GROWTH_MAX = 3.0
+#: Campaigns at SEEDS whose extended U95 grows beyond :data:`U95_GROWTH_MAX` (a ceiling, as :data:`KNOWN_MISNAMED`: a
+#: new one fails, a mended one passes and should be removed): gen_a knock 0, an unnamed smooth in ``feature`` adopted
+#: at a held-out RMS ratio of x0.92 (95 %: 0.33-2.58), its workpiece 1.90 um from the truth against the baseline's
+#: 0.99, its U95 5.5 times the baseline's; it goes with core.discover.WORKPIECE_U95_GROWTH_WITHHELD or
+#: SMOOTH_WORKPIECE_EARNED on (the extended workpiece is then not offered:
+#: :func:`test_an_extension_that_has_not_earned_it_does_not_move_the_workpiece`).
+KNOWN_U95_GROWN = {"gen_a": {"knock"}}
+
+
 @pytest.mark.parametrize("gen", GENERATORS)
 def test_extended_workpiece_never_worse_beyond_its_u95(studies, gen):
     s = summarize(studies[gen])["workpiece_ok"]
     bad = [(o.effect, round(o.wp_base_um, 3), round(o.wp_ext_um, 3), round(o.wp_u95_um, 3)) for o in studies[gen]
            if np.isfinite(o.wp_ext_um) and not o.wp_ext_um <= o.wp_base_um + o.wp_u95_um]
     assert s["k"] == s["n"], bad
+    # ... and its U95 not grown beyond U95_GROWTH_MAX times the baseline's (a U95 that grows with the damage passes
+    # the first check whatever the damage)
+    grown = {o.effect: round(o.wp_u95_um / o.wp_u95_base_um, 2) for o in studies[gen]
+             if np.isfinite(o.wp_ext_um) and o.wp_u95_base_um > 0 and o.wp_u95_um > U95_GROWTH_MAX * o.wp_u95_base_um}
+    assert set(grown) <= KNOWN_U95_GROWN.get(gen, set()), grown
+
+
+@pytest.mark.parametrize("rule", [pytest.param(None, marks=pytest.mark.xfail(
+    strict=True, reason="both rules off: the smooth's extended workpiece is offered")),
+    "SMOOTH_WORKPIECE_EARNED", "WORKPIECE_U95_GROWTH_WITHHELD"])
+def test_an_extension_that_has_not_earned_it_does_not_move_the_workpiece(monkeypatch, rule):
+    """gen_a knock 0 (audit35 F4): an unnamed smooth in ``feature`` adopted on the point estimate of its held-out
+    gain (1.19 um^2 against materiality 0.015), whose interval reaches "no gain": held-out RMS x0.92, 95 %
+    0.33-2.58. Its extended workpiece is 1.90 um from the truth against the baseline's 0.99, its U95 (RMS outside
+    the part's gauge) 10.35 um against 1.87 (5.5 times; U95 max 55.3 um against 5.6 in the gauge). With either rule of
+    core.discover (SMOOTH_WORKPIECE_EARNED: the smooth's own held-out gain interval reaches 1;
+    WORKPIECE_U95_GROWTH_WITHHELD: the U95 beyond WORKPIECE_U95_GROWTH_MAX = 3 times the baseline's) the finding, the
+    smooth and the diagnosis stay; the extended workpiece is not offered (null per target, the fit's own under
+    ``extended_fit_um``), the baseline's is the estimate, the reason is in the JSON and the summary. With both off
+    the first assertion on the workpiece fails (strict xfail)."""
+    import core.discover as D
+    from scenarios.cli.discover import summary_lines
+
+    mod = _blind("gen_a")
+    if mod is None:
+        pytest.skip("blind generator gen_a not present")
+    # what the rules withhold, against the truth: the extended estimate is the worse one, its U95 grown, with both
+    # off (the study's outcome while both are off, as they ship: kept for the module, so fetched before a constant
+    # is set; made apart with both set off where one ships on)
+    rules = ("SMOOTH_WORKPIECE_EARNED", "WORKPIECE_U95_GROWTH_WITHHELD")
+    if any(getattr(D, r) for r in rules):
+        for r in rules:
+            monkeypatch.setattr(D, r, False)
+        off = blind_outcome(mod, "knock", 0, generator="gen_a")
+    else:
+        off = _blind_case("gen_a", "knock", 0)
+    assert off.wp_ext_um > 1.5 * off.wp_base_um, (off.wp_base_um, off.wp_ext_um)
+    assert off.wp_u95_um > 5 * off.wp_u95_base_um, (off.wp_u95_base_um, off.wp_u95_um)
+    for r in rules:
+        monkeypatch.setattr(D, r, r == rule)
+    log, _ = mod.generate("knock", 0)
+    rep = discovered(log).to_report()
+    assert rep["cause"] == "unexplained" and rep["extended"]["model"].endswith("unnamed smooth in feature")
+    iv = rep["gain"]["cv_rms_ratio_95"]
+    assert iv is not None and iv[1] >= 1.0, iv  # the extension's held-out gain may be none
+    wp = rep["workpiece"]
+    assert all(w["extended_um"] is None and w["extended_u95_um"] is None for w in wp)
+    assert all(w["baseline_um"] is not None and w["extended_fit_um"] is not None for w in wp)
+    no = rep["workpiece_not_offered"]
+    assert no["smooth"]["covariate"] == "feature"
+    # the smooth is the whole extension here: its own interval (beside no named cause, on the final rows) is the
+    # report's gain interval (the baseline's held-out sums, computed apart), to rounding
+    assert no["smooth"]["cv_rms_ratio_95"] == pytest.approx(iv, rel=1e-9)
+    line = next(x for x in summary_lines(rep) if x.startswith("workpiece"))
+    assert "extended estimate not offered" in line, line
+    if rule == "SMOOTH_WORKPIECE_EARNED":
+        assert no["rule"] == "smooth_gain_interval" and "95 %: 0.33-2.58" in line, (no, line)
+    else:
+        # the engine's gauge-free U95 is the harness's (computed apart, from the truth's targets), to rounding
+        g = no["u95_rms_gauge_free_um"]
+        assert no["rule"] == "u95_growth" and "beyond 3" in line, (no, line)
+        assert (g["extended"], g["baseline"]) == pytest.approx((off.wp_u95_um, off.wp_u95_base_um), rel=1e-6)
 
 
 def _outcome(base, ext, u95, identifiable=True):
