@@ -11397,8 +11397,9 @@ SMOOTH_WORKPIECE_EARNED = False
 #: besides gen_a knock 0 (5.5, audit35's F4); the next are 2.85 (gen_c speed_pretravel 11, which mends the workpiece
 #: 1.04 -> 0.65 um) and 2.25 (gen_a feed_latency 1003, 3.49 -> 0.47 um); no extended workpiece that mends the
 #: baseline's is withheld, readings and confidence never move (the rule acts after them): docs/discovery.md,
-#: "Session 35: an extended workpiece offered only when earned". Proposed on; off while the lead's blind check runs.
-WORKPIECE_U95_GROWTH_WITHHELD = False
+#: "Session 35: an extended workpiece offered only when earned". On since session 35 (the lead, on these tuning figures;
+#: the blind set E read with it after: docs/discovery.md, "The last blind check").
+WORKPIECE_U95_GROWTH_WITHHELD = True
 #: :data:`WORKPIECE_U95_GROWTH_WITHHELD`'s factor.
 WORKPIECE_U95_GROWTH_MAX = 3.0
 

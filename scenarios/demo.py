@@ -273,10 +273,15 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
     say(f"extended {rep['extended']['model']}: RMS {rep['extended']['rms_um']:.3f} um (x{g['rms_ratio']:.2f}),"
         f" cross-validated {rep['extended']['cv_rms_um']:.3f} um ({cv_ratio_text(g)})")
     ids = [w["target"] for w in rep["workpiece"]]
-    gb = np.array([w["baseline_um"] for w in rep["workpiece"]]) * UM
-    ge = np.array([w["extended_um"] for w in rep["workpiece"]]) * UM
-    eb, ee = truth.rms_m(gb, ids), truth.rms_m(ge, ids)
-    say(f"workpiece against the truth: baseline {eb * 1e6:.3f} um RMS -> extended {ee * 1e6:.3f} um RMS")
+    gb = np.array([w["baseline_um"] for w in rep["workpiece"]], float) * UM
+    eb = truth.rms_m(gb, ids)
+    if rep.get("workpiece_not_offered"):  # (core.discover.WORKPIECE_U95_GROWTH_WITHHELD: the baseline's is the estimate)
+        say(f"workpiece against the truth: baseline {eb * 1e6:.3f} um RMS; extended not offered "
+            f"({rep['workpiece_not_offered']['rule']})")
+    else:
+        ge = np.array([w["extended_um"] for w in rep["workpiece"]], float) * UM
+        say(f"workpiece against the truth: baseline {eb * 1e6:.3f} um RMS -> extended {truth.rms_m(ge, ids) * 1e6:.3f}"
+            " um RMS")
     hidden = {"periodic_axis_error", "probe_lobing"}
     named = {f["cause"] for f in rep["findings"]}
     verdict = "both hidden effects named" if hidden <= named else f"named {sorted(named)}, hidden {sorted(hidden)}"

@@ -169,9 +169,11 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     rows = _magnitude_rows(rep, "planar")
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
+    no = rep.get("workpiece_not_offered")  # (core.discover.WORKPIECE_U95_GROWTH_WITHHELD: extended cells null)
     secs.append(Section("Workpiece per target (discovery)",
-                        text="" if rep["workpiece_identifiable"] else
-                        "Not identifiable by this design: no estimate is reported.",
+                        text=("Not identifiable by this design: no estimate is reported." if not rep["workpiece_identifiable"]
+                              else f"Extended estimate not offered: {no['reason']}; the baseline's is the estimate "
+                                   "(the extended fit's own in the JSON, extended_fit_um)." if no else ""),
                         tables=[Table(
                             ["target", "baseline / µm", "U95 / µm", "extended / µm", "U95 / µm"],
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
