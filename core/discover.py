@@ -65,6 +65,8 @@ What it does, in order, and the statistics behind each step
       significant form is judged and, of those that pass, the one of least
       variance inflation beside the model is taken
       (:data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`, on since session 26;
+      counted as the fallback's with :data:`CONFOUNDED_SELECTION_COUNTED`,
+      built, off;
       the first that passes by p, :data:`CONFOUNDED_FALLBACK`, is off, its
       measured cost, and so are session 25's other variants,
       :data:`CONFOUNDED_FALLBACK_BY_GAIN` and
@@ -140,7 +142,11 @@ What it does, in order, and the statistics behind each step
    in the order of adoption, by the search's tests (4a-f, its form chosen
    again) beside the causes before it that stay, and refused
    (``judged again without ...`` in ``rejected``) or adopted again
-   (``judged_again_without`` in its evidence).
+   (``judged_again_without`` in its evidence). With
+   :data:`DROPPED_ROUND_REOPENED` (built, off) the round the dropped cause
+   won is decided again: the search resumes beside the causes that stay,
+   every dropped cause kept out (``round_reopened_without`` in the
+   evidence of what it adopts), and what it adopts meets this check too.
 6. **Unexplained**: first a penalised named cause's ridge is chosen again
    over its grid in the model as it now stands (its rows and the causes
    beside it final: :func:`_penalties_rechosen`, session 20); where it
