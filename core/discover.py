@@ -6847,8 +6847,13 @@ CONFOUNDED_FALLBACK_LEAST_INFLATION = True
 #: approach) passes every test (p 7.8e-64) and reversal (p 2.3e-18) wins the round; round 2, beside reversal,
 #: probe_lobing is refused at held-out gain -5.11 um^2 (materiality 0.512); the rival check then drops reversal
 #: (0.66 of a smooth in approach_azimuth) and the search ends empty. Not where outliers were put back by a cause that
-#: stays (the search's own screen would set them aside again). Session 35 (sel35). Off: built, measured, for the
-#: lead (docs/discovery.md, "Session 35: the round a dropped cause won, decided again").
+#: stays (the search's own screen would set them aside again). Session 35 (sel35). On, 10304 reads `probe_lobing?`
+#: (extended workpiece 0.52 um, U95 1.15; baseline 5.29). Measured on 1,659 tuning campaigns (the rival check drops a
+#: cause in 134, 4 move): gen_a local_scale_defect 1009 (vis 2.46; the same pattern: a ripple won round 1, the bump
+#: refused beside it at -4.62 um^2, the ripple dropped) `unexplained` -> `local_scale_defect?`; gen_b
+#: lobing_per_setup 1067 and signal_latency 1008 gain an outlier finding beside `unexplained`; nothing right ->
+#: wrong, every workpiece within its check. Off: built, measured, for the lead (docs/discovery.md, "Session 35: the
+#: round a dropped cause won, decided again").
 DROPPED_ROUND_REOPENED = False
 #: Whether a form the confounded step takes (:data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`: the form of smallest p
 #: refused as confounded, the least inflated of the cause's other significant forms that pass every test taken) is
@@ -6857,7 +6862,10 @@ DROPPED_ROUND_REOPENED = False
 #: with them (:func:`_fallback_short`; the evidence's ``held_out_fallback_forms``, ``..._gain_um2``,
 #: ``..._materiality_um2`` and ``held_out_fallback_step`` ``"confounded"``). The step is a second selection too:
 #: each form that passes had its chance at the held-out test, so a pass is the best of several. Session 35 (sel35).
-#: Off: built, measured, for the lead (docs/discovery.md, "Session 35: the round a dropped cause won, decided again").
+#: Measured on the same 1,659 tuning campaigns: 8 reach the step's form, 3 move, right names made hedged (gen_b c_drift
+#: 1178, 1187, 1196, vis 0.68-1.47; 1187: gain 0.275 against 6 x 0.189 um^2), workpieces unchanged; gen_a c_drift
+#: 1125 (9.6x among 6) and gen_b 1139 kept named. Off: built, measured, for the lead (docs/discovery.md,
+#: "Session 35: the round a dropped cause won, decided again").
 CONFOUNDED_SELECTION_COUNTED = False
 
 
