@@ -6770,7 +6770,9 @@ def _fallback_short(ev: dict) -> str | None:
 #: (:func:`_rival_share`) becomes the same hedge on such a term. Session 34 (sel34). Off: it does not mend 10304
 #: (lobing_per_setup, judged again, is refused on its own plausibility check: its lobes' orientations agree across
 #: the set-ups, 14 +- 130 deg, "the probe is oriented": fixed lobes, the plainer cause, which passes every test and
-#: the rival check in two of the engine's searches there and fails its held-out test in a third), and on the 610 tuning campaigns of :data:`FALLBACK_SELECTION_COUNTED` it fires on 15 and moves
+#: the rival check in round 1 of the search and in the finer map's, and fails its held-out test in round 2 beside
+#: reversal, which the rival check then drops: session 35, :data:`DROPPED_ROUND_REOPENED`), and on the 610 tuning
+#: campaigns of :data:`FALLBACK_SELECTION_COUNTED` it fires on 15 and moves
 #: 3, all below visibility: gen_a reversal 1009 right -> wrong (`reversal?` -> `periodic_axis_error?` then
 #: lobing_per_setup; extended workpiece 0.46 -> 3.86 um, baseline 3.08, U95 1.87), gen_b probe_lobing 1003
 #: (`unexplained`) and 1012 (`outlier?`) -> `lobing_per_setup?` with probe_lobing among its alternatives.
