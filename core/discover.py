@@ -6851,7 +6851,7 @@ CONFOUNDED_FALLBACK_LEAST_INFLATION = True
 #: (0.66 of a smooth in approach_azimuth) and the search ends empty. Not where outliers were put back by a cause that
 #: stays (the search's own screen would set them aside again). Session 35 (sel35). On, 10304 reads `probe_lobing?`
 #: (extended workpiece 0.52 um, U95 1.15; baseline 5.29). Measured on 1,659 tuning campaigns (the rival check drops a
-#: cause in 134, 4 move): gen_a local_scale_defect 1009 (vis 2.46; the same pattern: a ripple won round 1, the bump
+#: cause in 134, 3 move): gen_a local_scale_defect 1009 (vis 2.46; the same pattern: a ripple won round 1, the bump
 #: refused beside it at -4.62 um^2, the ripple dropped) `unexplained` -> `local_scale_defect?`; gen_b
 #: lobing_per_setup 1067 and signal_latency 1008 gain an outlier finding beside `unexplained`; nothing right ->
 #: wrong, every workpiece within its check. Off: built, measured, for the lead (docs/discovery.md, "Session 35: the
