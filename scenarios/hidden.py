@@ -963,24 +963,59 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
     return res, times, params
 
 
-def mfb_outcome(cause: str, seed: int, **discover_kw) -> Outcome:
-    """One MFB campaign with ``cause`` hidden, discovered on the volumetric baseline and scored.
+def _mfb_baseline(cause: str, seed: int, name: str):
+    """(volumetric Baseline, the machine's error functions) of :func:`hidden_mfb`'s campaign."""
+    from core.baseline import volumetric
+    from scenarios.mfb import default_machine
 
-    The estimand's error (``wp_*``) is the RMS over the positioning and
-    straightness table values (um) of estimate minus truth in the
-    baseline's gauge (the truth expressed with ``VolumetricDesign.to_gauge``).
+    res, times, _ = hidden_mfb(cause, seed, name=name)
+    plan = res.plan
+    cfg, errs = default_machine(plan.machine)
+    return volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times), errs
+
+
+def mfb_effect_outside_baseline(bl, bl0, noise_um: float) -> tuple[float, float]:
+    """(visibility in noise sigmas, angle to the baseline's column space, deg) of a hidden MFB effect.
+
+    ``bl`` the volumetric baseline of the campaign with the effect, ``bl0``
+    that of the same seed without it. :func:`hidden_mfb` draws the bar, the
+    placements and the probing noise from the seed whatever is hidden (the
+    effect changes the machine, the bar or the probe, not the draws), so the
+    difference of the two campaigns' whitened rows is the effect alone, in
+    the rows discovery fits. Its part outside the baseline's column space
+    (the span of ``A`` over the gauge's free directions: what no error table,
+    placement or gauge takes) is what a residual test can see; its RMS over
+    the rows it acts on, over ``noise_um`` (:func:`effect_outside_baseline`,
+    gen_b's "absorbed by the baseline" figure). Raises ConfigError when the
+    two campaigns do not have the same rows.
     """
+    from types import SimpleNamespace
+
+    if bl.n != bl0.n or not np.array_equal(np.asarray(bl.rows), np.asarray(bl0.rows)):
+        raise ConfigError("the campaigns with and without the hidden effect do not have the same rows")
+    _, sv, Vt = np.linalg.svd(bl.C)
+    N = Vt[int(np.sum(sv > 1e-12 * sv.max())):].T if sv.size else np.eye(bl.A.shape[1])
+    return effect_outside_baseline(SimpleNamespace(A=bl.A @ N), bl.y - bl0.y, noise_um * UM)
+
+
+#: Effect-free MFB campaigns kept per (plan, seed, discovery options): a study of every hidden effect on one seed
+#: simulates and discovers the effect-free campaign once (the visibility's reference and the ``none`` outcome).
+MFB_FREE_CACHE = 8
+
+
+@lru_cache(maxsize=MFB_FREE_CACHE)
+def _mfb_free(name: str, seed: int, kw: tuple):
+    """(baseline, Outcome) of the effect-free campaign of ``seed`` on plan ``name``."""
+    bl, errs = _mfb_baseline("none", seed, name)
+    return bl, _mfb_score("none", seed, name, bl, errs, None, dict(kw))
+
+
+def _mfb_score(cause, seed, name, bl, errs, free, discover_kw) -> Outcome:
     import time
 
     from core import iso, volumetric as vol
-    from core.baseline import volumetric
     from core.discover import discover_baseline
-    from scenarios.mfb import default_machine
 
-    res, times, _ = hidden_mfb(cause, seed)
-    plan = res.plan
-    cfg, errs = default_machine(plan.machine)
-    bl = volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times)
     t0 = time.perf_counter()
     d = discover_baseline(bl, **discover_kw)
     dt = time.perf_counter() - t0
@@ -1005,8 +1040,51 @@ def mfb_outcome(cause: str, seed: int, **discover_kw) -> Outcome:
 
     Cq = d.cov_G_extended[np.ix_(lin, lin)] if d.cov_G_extended is not None else None
     wu = float(np.sqrt(np.mean(4 * np.maximum(np.diag(Cq), 0)))) / UM if Cq is not None else float("nan")
-    n, p = bl.n, rep["baseline"]["n_params"]
-    sig = 0.125
-    vis = float(np.sqrt(max(rep["baseline"]["rms_um"] ** 2 - sig ** 2 * (n - p) / n, 0.0)) / sig)
-    return Outcome("mfb", cause, int(seed), (cause,), rep["cause"], tuple(f["cause"] for f in rep["findings"]),
-                   True, vis, sig, err(d.G_baseline_m), err(d.G_extended_m), wu, dt)
+    if free is None:  # the effect-free campaign: no effect to see; its noise is the reference
+        sig, vis, angle = float(rep["noise_um"]["sigma_um"]), 0.0, float("nan")
+    else:
+        bl0, o0 = free
+        sig = o0.noise_um
+        vis, angle = mfb_effect_outside_baseline(bl, bl0, sig)
+    conf = not any(f["evidence"].get("confidence") == "ambiguous" for f in rep["findings"][:1])
+    alts = tuple(rep["findings"][0]["evidence"].get("ambiguous_with") or ()) if rep["findings"] else ()
+    gen = "mfb" if name == "mfb-3axis" else name
+    return Outcome(gen, cause, int(seed), (cause,), rep["cause"], tuple(f["cause"] for f in rep["findings"]),
+                   bool(conf), vis, sig, err(d.G_baseline_m), err(d.G_extended_m), wu, dt,
+                   angle_to_baseline_deg=angle, alternatives=alts)
+
+
+def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", **discover_kw) -> Outcome:
+    """One MFB campaign with ``cause`` hidden, discovered on the volumetric baseline and scored.
+
+    The estimand's error (``wp_*``) is the RMS over the positioning and
+    straightness table values (um) of estimate minus truth in the
+    baseline's gauge (the truth expressed with ``VolumetricDesign.to_gauge``).
+
+    ``visible_sigmas`` is the effect's part outside the baseline's column
+    space (:func:`mfb_effect_outside_baseline`: this campaign less the same
+    seed without the effect) in sigmas of the noise discovery judges the
+    effect-free campaign with (``noise_um``: its ``noise_um.sigma_um``, the
+    residuals' on this plan, which hold the bar's deviation from its
+    calibration: 2.7-4 x the 0.125 um touch noise), and
+    ``angle_to_baseline_deg`` its angle to that space; 0 for ``none``. The
+    effect-free campaign is simulated and discovered once per plan and seed
+    (:data:`MFB_FREE_CACHE`). ``confident`` is the first finding's (not
+    flagged ambiguous) and ``alternatives`` its ``ambiguous_with``.
+    """
+    if cause not in MFB_HIDDEN:
+        raise ConfigError(f"unknown hidden MFB cause {cause!r}; expected one of {', '.join(MFB_HIDDEN)}")
+    try:
+        kw = tuple(sorted(discover_kw.items()))
+        hash(kw)
+    except TypeError:
+        kw = None
+    if kw is not None:
+        free = _mfb_free(name, int(seed), kw)
+    else:
+        bl0, errs0 = _mfb_baseline("none", seed, name)
+        free = (bl0, _mfb_score("none", seed, name, bl0, errs0, None, discover_kw))
+    if cause == "none":
+        return free[1]
+    bl, errs = _mfb_baseline(cause, seed, name)
+    return _mfb_score(cause, seed, name, bl, errs, free, discover_kw)
