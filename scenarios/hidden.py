@@ -886,7 +886,7 @@ def bar_gravity_A(T_W_A, T_R_W) -> np.ndarray:
 MFB_MEASUREMENT_S = 600.0
 
 
-def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
+def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True):
     """An MFB campaign (scenarios.mfb) with ``cause`` hidden in the simulated machine, bar or probe.
 
     ``thermal_drift``: the X, Y and Z scales drift by 5-15 ppm over the
@@ -897,7 +897,14 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
     position along it; gravity is the machine's -z, carried into the bar
     through the table's pose at the set-up's rotary positions:
     :func:`bar_gravity_A`), standing bars do not; ``lobing_per_stylus``: each
-    stylus its own 2- and 3-lobe pre-travel of 0.5-1.5 um.
+    stylus its own 2- and 3-lobe pre-travel of 0.5-1.5 um (params: each
+    stylus' amplitudes and peak-to-valley over the azimuth, keyed by its
+    offset J in mm as discovery's report names the styli).
+
+    ``bar_cal_error`` as :func:`scenarios.mfb.run`'s: on (the default), the
+    bar differs from its calibration by a draw of 0.2-0.35 um per hole, which
+    discovery's noise (the residuals') then holds; off, the bar is as
+    calibrated (the other draws of the seed unchanged).
 
     Returns
     -------
@@ -953,22 +960,28 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis"):
                 ph = rng.uniform(0, 2 * np.pi, 2)
                 lobes[key] = ((2, a[0] * np.cos(ph[0]), a[0] * np.sin(ph[0])), (3, a[1] * np.cos(ph[1]),
                                                                                 a[1] * np.sin(ph[1])))
-                params[f"k2_um[{key}]"] = a[0] / UM
+                # keyed by the stylus as discovery's report names it (J in mm); the peak-to-valley over the
+                # azimuth is the report's pretravel_pv_um (sim.probe: sum a cos k phi + b sin k phi)
+                st = ",".join(f"{v * 1e3:g}" for v in key)
+                params[f"lobe2_um[{st}]"], params[f"lobe3_um[{st}]"] = float(a[0] / UM), float(a[1] / UM)
+                phi = np.linspace(-np.pi, np.pi, 3601)
+                p_ = sum(c * np.cos(k * phi) + s_ * np.sin(k * phi) for k, c, s_ in lobes[key])
+                params[f"pretravel_pv_um[{st}]"] = float(np.ptp(p_)) / UM
             probe = replace(probe, lobing_m=lobes[key])
         return art, probe, machine
 
     # discovery reads the campaign's measurements (res.meas), not run()'s identification: model (3)'s, the
     # exact-extraction step (core.volumetric.EXACT_EXTRACTION, session 32) not paid for (+0.13 s a campaign)
-    res = run(name, seed=seed, mc_runs=0, hook=hook, extraction=False)
+    res = run(name, seed=seed, mc_runs=0, hook=hook, extraction=False, bar_cal_error=bar_cal_error)
     return res, times, params
 
 
-def _mfb_baseline(cause: str, seed: int, name: str):
+def _mfb_baseline(cause: str, seed: int, name: str, bar_cal_error: bool = True):
     """(volumetric Baseline, the machine's error functions) of :func:`hidden_mfb`'s campaign."""
     from core.baseline import volumetric
     from scenarios.mfb import default_machine
 
-    res, times, _ = hidden_mfb(cause, seed, name=name)
+    res, times, _ = hidden_mfb(cause, seed, name=name, bar_cal_error=bar_cal_error)
     plan = res.plan
     cfg, errs = default_machine(plan.machine)
     return volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times), errs
@@ -1004,9 +1017,9 @@ MFB_FREE_CACHE = 8
 
 
 @lru_cache(maxsize=MFB_FREE_CACHE)
-def _mfb_free(name: str, seed: int, kw: tuple):
+def _mfb_free(name: str, seed: int, bar_cal_error: bool, kw: tuple):
     """(baseline, Outcome) of the effect-free campaign of ``seed`` on plan ``name``."""
-    bl, errs = _mfb_baseline("none", seed, name)
+    bl, errs = _mfb_baseline("none", seed, name, bar_cal_error)
     return bl, _mfb_score("none", seed, name, bl, errs, None, dict(kw))
 
 
@@ -1054,7 +1067,8 @@ def _mfb_score(cause, seed, name, bl, errs, free, discover_kw) -> Outcome:
                    angle_to_baseline_deg=angle, alternatives=alts)
 
 
-def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", **discover_kw) -> Outcome:
+def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True,
+                **discover_kw) -> Outcome:
     """One MFB campaign with ``cause`` hidden, discovered on the volumetric baseline and scored.
 
     The estimand's error (``wp_*``) is the RMS over the positioning and
@@ -1071,6 +1085,7 @@ def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", **discover_kw
     effect-free campaign is simulated and discovered once per plan and seed
     (:data:`MFB_FREE_CACHE`). ``confident`` is the first finding's (not
     flagged ambiguous) and ``alternatives`` its ``ambiguous_with``.
+    ``bar_cal_error``: :func:`hidden_mfb`'s.
     """
     if cause not in MFB_HIDDEN:
         raise ConfigError(f"unknown hidden MFB cause {cause!r}; expected one of {', '.join(MFB_HIDDEN)}")
@@ -1080,11 +1095,11 @@ def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", **discover_kw
     except TypeError:
         kw = None
     if kw is not None:
-        free = _mfb_free(name, int(seed), kw)
+        free = _mfb_free(name, int(seed), bool(bar_cal_error), kw)
     else:
-        bl0, errs0 = _mfb_baseline("none", seed, name)
+        bl0, errs0 = _mfb_baseline("none", seed, name, bar_cal_error)
         free = (bl0, _mfb_score("none", seed, name, bl0, errs0, None, discover_kw))
     if cause == "none":
         return free[1]
-    bl, errs = _mfb_baseline(cause, seed, name)
+    bl, errs = _mfb_baseline(cause, seed, name, bar_cal_error)
     return _mfb_score(cause, seed, name, bl, errs, free, discover_kw)
