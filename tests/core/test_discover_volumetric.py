@@ -17,9 +17,9 @@ and physical effects put into the measured data are found:
   gravity's part perpendicular to the bar, by a quartic of the position
   along it; a standing bar does not sag).
 
-Effects hidden in the simulator itself (and a lobing per stylus) are run by
-``vmt bench`` (scenarios/bench/discover_study.py, ``mfb``): one MFB
-campaign takes about a minute on this machine.
+Effects hidden in the simulator itself (a drift of the machine, a lobing per
+stylus of the probe) are tested in tests/scenarios/test_mfb_discovered.py and
+run by ``vmt bench`` (scenarios/bench/discover_study.py, ``mfb``).
 """
 
 import dataclasses
