@@ -1872,6 +1872,40 @@ def _fine_kinematics(res: VolumetricResult, prep) -> dict:
     return out
 
 
+def _fine_grid(res: VolumetricResult, prep, symbol: str, step_m: float) -> tuple:
+    """(lo, h, f, xs): ``symbol``'s fine table of :func:`_fine_rows`, hat functions ``h`` (about ``step_m``) apart from
+    ``lo`` (f + 1 of them) over the axis positions the touches (``xs``, per measurement) and the nodes span."""
+    ax = iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
+    x_n = np.asarray(res.design.nodes[iso.symbol(symbol).axis], float)
+    xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
+    lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
+    hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
+    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
+    return lo, (hi - lo) / f, f, xs
+
+
+def _hat(x, lo: float, h: float, f: int) -> np.ndarray:
+    """(len(x), f + 1): the fine table's hat functions (:func:`_fine_grid`) at the axis positions ``x``."""
+    k = np.clip(np.floor((x - lo) / h).astype(int), 0, f - 1)
+    z = (x - lo) / h - k
+    W = np.zeros((len(x), f + 1))
+    np.add.at(W, (np.arange(len(x)), k), 1 - z)
+    np.add.at(W, (np.arange(len(x)), k + 1), z)
+    return W
+
+
+def _fine_values(res: VolumetricResult, prep, symbol: str, step_m: float) -> np.ndarray:
+    """(n, f + 1): ``symbol``'s fine table (:func:`_fine_grid`) at its nodes, in the design's gauge (the S of
+    :func:`_fine_rows`; session 35: computed only for the tables whose share enters)."""
+    d = res.design
+    lo, h, f, _ = _fine_grid(res, prep, symbol, step_m)
+    S = np.zeros((len(d.names), f + 1))
+    S[d.slices[symbol]] = _hat(np.asarray(d.nodes[iso.symbol(symbol).axis], float), lo, h, f)
+    if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
+        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
+    return S
+
+
 def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None,
                centres: bool = False, values: bool = True):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
@@ -1881,31 +1915,16 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
     :func:`_fine_kinematics` of ``prep`` (computed here when not given); ``centres``: also the hat functions'
     centres (f,) m, axis positions (a third value); ``values`` False: S is None (not computed: a caller that
     does not use it, :func:`between_nodes_fit`)."""
-    ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
-    d = res.design
-    x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
+    ks = MOTION.index(symbol)
     kin = _fine_kinematics(res, prep) if kin is None else kin
     at = kin["at"]
     Sd = None if kin["Sd"] is None else kin["Sd"][:, ks]
-    xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
-    lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
-    hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
-    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
-    h = (hi - lo) / f
-
-    def hat(x):
-        k = np.clip(np.floor((x - lo) / h).astype(int), 0, f - 1)
-        z = (x - lo) / h - k
-        W = np.zeros((len(x), f + 1))
-        np.add.at(W, (np.arange(len(x)), k), 1 - z)
-        np.add.at(W, (np.arange(len(x)), k + 1), z)
-        return W
-
+    lo, h, f, xs = _fine_grid(res, prep, symbol, step_m)
     Phi = np.zeros((res.K.shape[1], f + 1))
     r0 = 0
     for i, (pm, x) in enumerate(zip(prep, xs)):
         k = pm["k"]
-        H = hat(x)
+        H = _hat(x, lo, h, f)
         if pm["touches"]:
             t = len(x)
             dy = (pm["GW"].reshape(3 * k, t) @ (Sd[at[i]:at[i] + t, None] * H)).reshape(k, 3, f + 1)
@@ -1915,12 +1934,20 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
         dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
         Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
         r0 += 3 * k
-    S = np.zeros((len(d.names), f + 1)) if values else None
-    if values:
-        S[d.slices[symbol]] = hat(x_n)
-    if values and d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
-        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
+    S = _fine_values(res, prep, symbol, step_m) if values else None
     return (Phi, S, lo + h * np.arange(f + 1)) if centres else (Phi, S)
+
+
+def _fine_of(res: VolumetricResult, meas, nm: _ResidualNoise, symbol: str, step_m: float) -> tuple:
+    """(Phi, centres, Rp Phi) of ``symbol``'s fine table (:func:`_fine_rows`, without the node values), computed
+    once per noise model for :func:`model_error_share` and :func:`between_nodes_fit` (session 35: the between-node
+    test made the 18 tables' rows and ``Rp Phi`` again after the share, the same numbers; ~0.2 s a 3-axis run)."""
+    key = ("fine", symbol, step_m)
+    if key not in nm.cache:
+        Phi, _, c = _fine_rows(res, meas, nm.prep, symbol, step_m, _kinematics_of(res, nm), centres=True,
+                               values=False)
+        nm.cache[key] = (Phi, c, nm.Rp @ Phi)
+    return nm.cache[key]
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
@@ -1972,15 +1999,14 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     nm = _noise_of("model_error_share", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
-    kin = _kinematics_of(res, nm)
-    fine = [_fine_rows(res, meas, prep, s, step_m, kin) for s in syms]
+    fine = [_fine_of(res, meas, nm, s, step_m) for s in syms]  # (Phi, centres, Rp Phi), shared with between_nodes_fit
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
     # every W_T lies in Rp's column space (an orthonormal Q, one SVD): each W_T's SVD is Q times that of the
     # much shorter Q^T W_T (the same singular values and vectors to rounding; session 34, 2-4 x less CPU)
     Uq, sq, _ = np.linalg.svd(Rp, full_matrices=False)
     Q = Uq[:, sq > (sq[0] * 1e-12 if len(sq) and sq[0] > 0 else np.inf)]
-    for Phi, _ in fine:
-        Uw, sw, _ = np.linalg.svd(Q.T @ (Rp @ Phi), full_matrices=False)
+    for _, _, RPhi in fine:
+        Uw, sw, _ = np.linalg.svd(Q.T @ RPhi, full_matrices=False)
         keep = sw > (sw[0] * 1e-10 if len(sw) and sw[0] > 0 else np.inf)
         Ws.append(Q @ (Uw[:, keep] * sw[keep]))
     q = np.array([float(np.sum((W.T @ rp) ** 2)) for W in Ws])
@@ -2006,7 +2032,9 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         scale = np.sqrt((X ** 2).sum(axis=0))
         sol, _ = nnls(X / scale, q[kept] - e0[kept])
         s2[kept] = sol / scale
-    cols = [np.sqrt(s2[k]) * (res.K @ fine[k][0] - fine[k][1]) for k in np.flatnonzero(s2 > 0)]
+    # the node values (in the gauge) of the entered tables only (session 35: all 18 were computed)
+    cols = [np.sqrt(s2[k]) * (res.K @ fine[k][0] - _fine_values(res, prep, syms[k], step_m))
+            for k in np.flatnonzero(s2 > 0)]
     C = np.hstack(cols) if cols else np.zeros((res.K.shape[0], 0))
     C[~np.any(res.K != 0, axis=1)] = 0.0  # the values the gauge fixes keep no uncertainty
     return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
@@ -2097,16 +2125,14 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         return None
     meas = list(meas)
     nm = _noise_of("between_nodes_fit", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
-    prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
-    kin = _kinematics_of(res, nm)
+    rp, Mp = nm.rp, nm.Mp
     d = res.design
     rows = []  # (p Satterthwaite, symbol, (x0, x1), q, A)
     for s in MOTION:
         x_n = np.asarray(d.nodes[iso.symbol(s).axis], float)
         if len(x_n) < 2:
             continue
-        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True, values=False)
-        RPhi = Rp @ Phi
+        _, c, RPhi = _fine_of(res, meas, nm, s, step_m)  # the share's when it ran (nm.cache)
         for x0, x1 in zip(x_n[:-1], x_n[1:]):
             cols = (c > x0 + 1e-9) & (c < x1 - 1e-9)
             W = RPhi[:, cols]
