@@ -1825,8 +1825,8 @@ MFB_MODEL_ERROR_EXACT_GATE = False
 #: the tables whose p it is; ``between_nodes.p_approx``). The levels: :data:`MFB_MODEL_ERROR_P` for the share's
 #: tables (the exact gate's, also when that gate is off: then ``p`` decides nothing), :data:`BETWEEN_NODES_P` over
 #: the intervals tested for the between-node test. The MFB run asks every table's exact tail where the lack-of-fit
-#: gate opens (its shares reported with their p). docs/papers-mfb.md, "The exact tails where they decide (session
-#: 35)".
+#: gate opens (its shares reported with their p). docs/papers-mfb.md, "The residual tests' cost, and the exact
+#: tails where they decide (session 35)".
 EXACT_TAIL_NEAR_LEVEL = True
 #: Satterthwaite's p at least this many times the level before it stands in for the exact tail
 #: (:data:`EXACT_TAIL_NEAR_LEVEL`): the approximate p reported is then far from the level, and on the side the
