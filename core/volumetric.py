@@ -1817,6 +1817,48 @@ MFB_MODEL_ERROR_P = 1.3498980316300946e-3
 #: self-calibration's (:data:`core.uncertainty.MODEL_ERROR_EXACT_GATE`: model error in several tables dilutes
 #: each one's test there; not measured on the MFB's truths).
 MFB_MODEL_ERROR_EXACT_GATE = False
+#: The residual tests' exact tails (Imhof's quadrature, :func:`core.lsq.quadratic_form_sf`: 10-80 ms each, 19 per
+#: noisy run, a quarter of the share's CPU) only where one could change a decision (session 35, mfb35): a tail
+#: whose rigorous lower bound (:func:`_tail_lower_bound`) is at or above the level cannot fall below it, whatever
+#: the exact value, so the decision is the exact tail's; where also Satterthwaite's scaled chi-square is at least
+#: :data:`EXACT_TAIL_FACTOR` x the level, that approximate ``p`` is reported, labelled (JSON ``model_error.p_approx``:
+#: the tables whose p it is; ``between_nodes.p_approx``). The levels: :data:`MFB_MODEL_ERROR_P` for the share's
+#: tables (the exact gate's, also when that gate is off: then ``p`` decides nothing), :data:`BETWEEN_NODES_P` over
+#: the intervals tested for the between-node test. The MFB run asks every table's exact tail where the lack-of-fit
+#: gate opens (its shares reported with their p). docs/papers-mfb.md, "The residual tests' cost, and the exact
+#: tails where they decide (session 35)".
+EXACT_TAIL_NEAR_LEVEL = True
+#: Satterthwaite's p at least this many times the level before it stands in for the exact tail
+#: (:data:`EXACT_TAIL_NEAR_LEVEL`): the approximate p reported is then far from the level, and on the side the
+#: decision (the lower bound's) took.
+EXACT_TAIL_FACTOR = 10.0
+
+
+def _tail_lower_bound(lam: np.ndarray, x: float) -> float:
+    """A rigorous lower bound of ``P(sum_j lam_j Z_j^2 > x)`` (weights ``lam`` >= 0, ``Z_j`` independent standard
+    normals): for each ``k`` the ``k`` largest weights are each at least the ``k``-th largest ``l_k`` and the others
+    add a non-negative amount, so ``P >= P(l_k chi2_k > x)``; the largest of these over ``k``."""
+    from scipy.stats import chi2
+
+    lam = np.sort(np.asarray(lam, float))[::-1]
+    lam = lam[lam > 0]
+    if not lam.size:
+        return 1.0 if x < 0 else 0.0
+    return float(np.max(chi2.sf(x / lam, np.arange(1, lam.size + 1))))
+
+
+def _tail(lam: np.ndarray, x: float, p_sat: float, level: float, exact: bool = False) -> tuple[float, bool]:
+    """(p, approximate): the tail ``P(sum_j lam_j Z_j^2 > x)`` of a residual test (weights ``lam`` > 0, at least
+    two), exact (Imhof) unless :data:`EXACT_TAIL_NEAR_LEVEL` and neither it nor its decision against ``level``
+    can differ from what Satterthwaite's ``p_sat`` says: ``p_sat >= EXACT_TAIL_FACTOR * level`` and the rigorous
+    lower bound :func:`_tail_lower_bound` ``>= level`` (the exact tail is then at or above the level). ``exact``:
+    exact whatever the constant."""
+    from .lsq import quadratic_form_sf
+
+    if (EXACT_TAIL_NEAR_LEVEL and not exact and p_sat >= EXACT_TAIL_FACTOR * level
+            and _tail_lower_bound(lam, x) >= level):
+        return float(p_sat), True
+    return quadratic_form_sf(lam, x), False
 
 
 @dataclass(frozen=True)
@@ -1836,6 +1878,9 @@ class ModelErrorShare:
         :data:`MFB_MODEL_ERROR_P`).
     columns : (n, c) float
         The estimate's error from the entered shares, ``cov = C C^T`` (the design's gauge); (n, 0) when none.
+    p_approx : tuple
+        The symbols whose ``p`` is Satterthwaite's approximation, not the exact tail (:data:`EXACT_TAIL_NEAR_LEVEL`:
+        their exact tail is provably at or above :data:`MFB_MODEL_ERROR_P`).
     """
 
     u: dict
@@ -1843,6 +1888,7 @@ class ModelErrorShare:
     entered: tuple
     columns: np.ndarray
     p: dict | None = None
+    p_approx: tuple = ()
 
     def as_dict(self) -> dict:
         def unit(s):
@@ -1852,9 +1898,11 @@ class ModelErrorShare:
                 "gate": (f"p < {MFB_MODEL_ERROR_P:.3g}" if MFB_MODEL_ERROR_EXACT_GATE else f"z > {MFB_MODEL_ERROR_Z:g}"),
                 "z_min": MFB_MODEL_ERROR_Z,
                 "u": {s: {"u_" + unit(s): self.u[s] * 1e6, "z": self.z[s],
-                          "p": None if self.p is None else self.p[s]} for s in self.entered},
+                          "p": None if self.p is None else self.p[s], "p_approx": s in self.p_approx}
+                      for s in self.entered},
                 "z": {s: round(float(v), 2) for s, v in self.z.items()},
-                "p": None if self.p is None else {s: float(f"{v:.3g}") for s, v in self.p.items()}}
+                "p": None if self.p is None else {s: float(f"{v:.3g}") for s, v in self.p.items()},
+                "p_approx": list(self.p_approx)}
 
 
 def _fine_kinematics(res: VolumetricResult, prep) -> dict:
@@ -1872,6 +1920,40 @@ def _fine_kinematics(res: VolumetricResult, prep) -> dict:
     return out
 
 
+def _fine_grid(res: VolumetricResult, prep, symbol: str, step_m: float) -> tuple:
+    """(lo, h, f, xs): ``symbol``'s fine table of :func:`_fine_rows`, hat functions ``h`` (about ``step_m``) apart from
+    ``lo`` (f + 1 of them) over the axis positions the touches (``xs``, per measurement) and the nodes span."""
+    ax = iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
+    x_n = np.asarray(res.design.nodes[iso.symbol(symbol).axis], float)
+    xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
+    lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
+    hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
+    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
+    return lo, (hi - lo) / f, f, xs
+
+
+def _hat(x, lo: float, h: float, f: int) -> np.ndarray:
+    """(len(x), f + 1): the fine table's hat functions (:func:`_fine_grid`) at the axis positions ``x``."""
+    k = np.clip(np.floor((x - lo) / h).astype(int), 0, f - 1)
+    z = (x - lo) / h - k
+    W = np.zeros((len(x), f + 1))
+    np.add.at(W, (np.arange(len(x)), k), 1 - z)
+    np.add.at(W, (np.arange(len(x)), k + 1), z)
+    return W
+
+
+def _fine_values(res: VolumetricResult, prep, symbol: str, step_m: float) -> np.ndarray:
+    """(n, f + 1): ``symbol``'s fine table (:func:`_fine_grid`) at its nodes, in the design's gauge (the S of
+    :func:`_fine_rows`; session 35: computed only for the tables whose share enters)."""
+    d = res.design
+    lo, h, f, _ = _fine_grid(res, prep, symbol, step_m)
+    S = np.zeros((len(d.names), f + 1))
+    S[d.slices[symbol]] = _hat(np.asarray(d.nodes[iso.symbol(symbol).axis], float), lo, h, f)
+    if d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
+        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
+    return S
+
+
 def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, kin: dict | None = None,
                centres: bool = False, values: bool = True):
     """(Phi (m, f), S (n, f)): a fine table of ``symbol`` (hat functions ``step_m`` apart over the axis
@@ -1881,31 +1963,16 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
     :func:`_fine_kinematics` of ``prep`` (computed here when not given); ``centres``: also the hat functions'
     centres (f,) m, axis positions (a third value); ``values`` False: S is None (not computed: a caller that
     does not use it, :func:`between_nodes_fit`)."""
-    ks, ax = MOTION.index(symbol), iso.LINEAR_AXES.index(iso.symbol(symbol).axis)
-    d = res.design
-    x_n = np.asarray(d.nodes[iso.symbol(symbol).axis], float)
+    ks = MOTION.index(symbol)
     kin = _fine_kinematics(res, prep) if kin is None else kin
     at = kin["at"]
     Sd = None if kin["Sd"] is None else kin["Sd"][:, ks]
-    xs = [pm["qt"][:, ax] + pm["g"].J_m[ax] if pm["touches"] else pm["q"][:, ax] + pm["g"].J_m[ax] for pm in prep]
-    lo = min(float(x_n.min()), *(float(x.min()) for x in xs))
-    hi = max(float(x_n.max()), *(float(x.max()) for x in xs))
-    f = max(int(np.ceil((hi - lo) / step_m - 1e-9)), 1)
-    h = (hi - lo) / f
-
-    def hat(x):
-        k = np.clip(np.floor((x - lo) / h).astype(int), 0, f - 1)
-        z = (x - lo) / h - k
-        W = np.zeros((len(x), f + 1))
-        np.add.at(W, (np.arange(len(x)), k), 1 - z)
-        np.add.at(W, (np.arange(len(x)), k + 1), z)
-        return W
-
+    lo, h, f, xs = _fine_grid(res, prep, symbol, step_m)
     Phi = np.zeros((res.K.shape[1], f + 1))
     r0 = 0
     for i, (pm, x) in enumerate(zip(prep, xs)):
         k = pm["k"]
-        H = hat(x)
+        H = _hat(x, lo, h, f)
         if pm["touches"]:
             t = len(x)
             dy = (pm["GW"].reshape(3 * k, t) @ (Sd[at[i]:at[i] + t, None] * H)).reshape(k, 3, f + 1)
@@ -1915,17 +1982,25 @@ def _fine_rows(res: VolumetricResult, meas, prep, symbol: str, step_m: float, ki
         dy[pm["off"]] = np.einsum("ij,kjf->kif", pm["Pz"], dy[pm["off"]])
         Phi[r0:r0 + 3 * k] = dy.reshape(3 * k, f + 1)
         r0 += 3 * k
-    S = np.zeros((len(d.names), f + 1)) if values else None
-    if values:
-        S[d.slices[symbol]] = hat(x_n)
-    if values and d.C.shape[0]:  # Design.to_gauge of every column at once (one least-squares solve, f + 1 right-hand sides)
-        S = S + d.null @ np.linalg.lstsq(d.C @ d.null, -d.C @ S, rcond=None)[0]
+    S = _fine_values(res, prep, symbol, step_m) if values else None
     return (Phi, S, lo + h * np.arange(f + 1)) if centres else (Phi, S)
+
+
+def _fine_of(res: VolumetricResult, meas, nm: _ResidualNoise, symbol: str, step_m: float) -> tuple:
+    """(Phi, centres, Rp Phi) of ``symbol``'s fine table (:func:`_fine_rows`, without the node values), computed
+    once per noise model for :func:`model_error_share` and :func:`between_nodes_fit` (session 35: the between-node
+    test made the 18 tables' rows and ``Rp Phi`` again after the share, the same numbers; ~0.2 s a 3-axis run)."""
+    key = ("fine", symbol, step_m)
+    if key not in nm.cache:
+        Phi, _, c = _fine_rows(res, meas, nm.prep, symbol, step_m, _kinematics_of(res, nm), centres=True,
+                               values=False)
+        nm.cache[key] = (Phi, c, nm.Rp @ Phi)
+    return nm.cache[key]
 
 
 def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
                       cal_map=None, step_m: float = MFB_MODEL_ERROR_STEP_M,
-                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True,
+                      z_min: float = MFB_MODEL_ERROR_Z, exact_p: bool = True, all_exact: bool = False,
                       noise: _ResidualNoise | None = None) -> ModelErrorShare | None:
     """The MFB's model-error share: per motion table, a fine table the residuals show the tables miss.
 
@@ -1946,7 +2021,10 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
 
     ``exact_p`` False (and :data:`MFB_MODEL_ERROR_EXACT_GATE` off, so the gate is z): ``p`` is not computed
     (None; about half the function's CPU, 18 numerical integrations), for a caller that keeps only the
-    columns (the budget study's runs, :func:`scenarios.mfb.budget_run`); the shares are the same.
+    columns (the budget study's runs, :func:`scenarios.mfb.budget_run`); the shares are the same. With
+    :data:`EXACT_TAIL_NEAR_LEVEL` (session 35) a table's ``p`` is Satterthwaite's where its exact tail provably
+    cannot fall below :data:`MFB_MODEL_ERROR_P` (:func:`_tail`; ``p_approx`` names those tables); ``all_exact``:
+    every table's exact (the MFB run asks it when the lack-of-fit gate opens).
 
     Returns None when there is no probing noise to test against (``sigma_probe_m`` 0). ``noise``:
     :func:`residual_noise` of the same arguments (computed here when None).
@@ -1958,8 +2036,7 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         ``step_m`` not > 0; ``z_min`` not finite; ``noise`` computed for other inputs.
     """
     from scipy.optimize import nnls
-
-    from .lsq import quadratic_form_sf
+    from scipy.stats import chi2
 
     u_cal, up = _noise_inputs("model_error_share", sigma_probe_m, u_cal_m, u_place)
     if not (np.isfinite(step_m) and step_m > 0):
@@ -1972,15 +2049,14 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     nm = _noise_of("model_error_share", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
     prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
     syms = list(MOTION)
-    kin = _kinematics_of(res, nm)
-    fine = [_fine_rows(res, meas, prep, s, step_m, kin) for s in syms]
+    fine = [_fine_of(res, meas, nm, s, step_m) for s in syms]  # (Phi, centres, Rp Phi), shared with between_nodes_fit
     Ws = []  # each W_T compressed to its column space (m, rank): W_T W_T^T unchanged
     # every W_T lies in Rp's column space (an orthonormal Q, one SVD): each W_T's SVD is Q times that of the
     # much shorter Q^T W_T (the same singular values and vectors to rounding; session 34, 2-4 x less CPU)
     Uq, sq, _ = np.linalg.svd(Rp, full_matrices=False)
     Q = Uq[:, sq > (sq[0] * 1e-12 if len(sq) and sq[0] > 0 else np.inf)]
-    for Phi, _ in fine:
-        Uw, sw, _ = np.linalg.svd(Q.T @ (Rp @ Phi), full_matrices=False)
+    for _, _, RPhi in fine:
+        Uw, sw, _ = np.linalg.svd(Q.T @ RPhi, full_matrices=False)
         keep = sw > (sw[0] * 1e-10 if len(sw) and sw[0] > 0 else np.inf)
         Ws.append(Q @ (Uw[:, keep] * sw[keep]))
     q = np.array([float(np.sum((W.T @ rp) ** 2)) for W in Ws])
@@ -1989,15 +2065,18 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     v0 = np.array([2.0 * float(np.sum(a * a)) for a in WM])
     z = np.where(v0 > 0, (q - e0) / np.sqrt(np.where(v0 > 0, v0, 1.0)), 0.0)
     pv = np.ones(len(syms))
+    approx = []  # the tables whose p is Satterthwaite's (EXACT_TAIL_NEAR_LEVEL: their exact tail >= the level)
     exact_p = exact_p or MFB_MODEL_ERROR_EXACT_GATE
     for k, (a, qk) in enumerate(zip(WM, q) if exact_p else ()):
         lam = np.linalg.eigvalsh(a) if a.size else np.zeros(0)
         lam = lam[lam > (lam.max() * 1e-12 if lam.size and lam.max() > 0 else np.inf)]
         if lam.size >= 2:
-            pv[k] = quadratic_form_sf(lam, float(qk))
+            t1, t2 = float(lam.sum()), float(lam @ lam)
+            pv[k], ap = _tail(lam, float(qk), float(chi2.sf(float(qk) / (t2 / t1), t1 * t1 / t2)),
+                              MFB_MODEL_ERROR_P, all_exact)
+            if ap:
+                approx.append(syms[k])
         elif lam.size:  # one direction: a scaled chi-square of 1 degree
-            from scipy.stats import chi2
-
             pv[k] = float(chi2.sf(float(qk) / lam[0], 1))
     kept = np.flatnonzero(pv < MFB_MODEL_ERROR_P) if MFB_MODEL_ERROR_EXACT_GATE else np.flatnonzero(z > z_min)
     s2 = np.zeros(len(syms))
@@ -2006,13 +2085,16 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         scale = np.sqrt((X ** 2).sum(axis=0))
         sol, _ = nnls(X / scale, q[kept] - e0[kept])
         s2[kept] = sol / scale
-    cols = [np.sqrt(s2[k]) * (res.K @ fine[k][0] - fine[k][1]) for k in np.flatnonzero(s2 > 0)]
+    # the node values (in the gauge) of the entered tables only (session 35: all 18 were computed)
+    cols = [np.sqrt(s2[k]) * (res.K @ fine[k][0] - _fine_values(res, prep, syms[k], step_m))
+            for k in np.flatnonzero(s2 > 0)]
     C = np.hstack(cols) if cols else np.zeros((res.K.shape[0], 0))
     C[~np.any(res.K != 0, axis=1)] = 0.0  # the values the gauge fixes keep no uncertainty
     return ModelErrorShare({s: float(np.sqrt(v)) for s, v in zip(syms, s2)},
                            {s: float(v) for s, v in zip(syms, z)},
                            tuple(s for s, v in zip(syms, s2) if v > 0), C,
-                           {s: float(v) for s, v in zip(syms, pv)} if exact_p else None)
+                           {s: float(v) for s, v in zip(syms, pv)} if exact_p else None,
+                           tuple(approx))
 
 
 # --------------------------------------------------------------------------- between the nodes (session 34)
@@ -2034,7 +2116,8 @@ class BetweenNodes:
     interval_m : (float, float)
         Its two nodes, m (axis positions).
     p : float
-        That interval's tail probability under the probing noise (exact: Imhof).
+        That interval's tail probability under the probing noise (exact: Imhof; Satterthwaite's when
+        ``p_approx``).
     p_family : float
         ``p`` times the number of intervals tested (at most 1): what the test compares with its level.
     intervals : int
@@ -2043,6 +2126,9 @@ class BetweenNodes:
         ``p_family >= BETWEEN_NODES_P``.
     ratio : float
         That interval's statistic over its probing-noise expectation (1 when the interpolation holds).
+    p_approx : bool
+        ``p`` is Satterthwaite's, not the exact tail (:data:`EXACT_TAIL_NEAR_LEVEL`: the exact one is provably
+        at or above the level, so ``fits`` is its decision).
     """
 
     symbol: str
@@ -2052,12 +2138,13 @@ class BetweenNodes:
     intervals: int
     fits: bool
     ratio: float
+    p_approx: bool = False
 
     def as_dict(self) -> dict:
         unit = "urad" if iso.symbol(self.symbol).angular else "um"
         return {"symbol": self.symbol, "interval_mm": [v * 1e3 for v in self.interval_m], "p": self.p,
                 "p_family": self.p_family, "intervals": self.intervals, "level": BETWEEN_NODES_P,
-                "fits": self.fits, "tested_ratio": self.ratio, "unit": unit}
+                "fits": self.fits, "tested_ratio": self.ratio, "unit": unit, "p_approx": self.p_approx}
 
 
 def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_place=None, *,
@@ -2074,8 +2161,9 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     and placements' directions projected out, as in :func:`lack_of_fit`), and ``q_k = |W_k^T rp|^2`` is a
     quadratic form of the probing noise with the eigenvalues of ``W_k^T Mp W_k`` as weights: its tail by
     Satterthwaite's scaled chi-square on every interval, then exactly (Imhof,
-    :func:`core.lsq.quadratic_form_sf`) on the smallest. The test: that ``p`` times the number of intervals
-    (Bonferroni) against :data:`BETWEEN_NODES_P`.
+    :func:`core.lsq.quadratic_form_sf`) on the smallest (with :data:`EXACT_TAIL_NEAR_LEVEL`, session 35: only
+    where it could change the decision, :func:`_tail`; else Satterthwaite's, ``p_approx``). The test: that ``p``
+    times the number of intervals (Bonferroni) against :data:`BETWEEN_NODES_P`.
 
     Returns None when there is no probing noise (``sigma_probe_m`` 0) or no interval the touches see.
     ``noise``: :func:`residual_noise` of the same arguments (computed here when None).
@@ -2088,8 +2176,6 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     """
     from scipy.stats import chi2
 
-    from .lsq import quadratic_form_sf
-
     u_cal, up = _noise_inputs("between_nodes_fit", sigma_probe_m, u_cal_m, u_place)
     if not (np.isfinite(step_m) and step_m > 0):
         raise ConfigError(f"between_nodes_fit: step_m must be > 0, got {step_m!r}")
@@ -2097,16 +2183,14 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         return None
     meas = list(meas)
     nm = _noise_of("between_nodes_fit", noise, res, meas, sigma_probe_m, u_cal, up, cal_map)
-    prep, rp, Rp, Mp = nm.prep, nm.rp, nm.Rp, nm.Mp
-    kin = _kinematics_of(res, nm)
+    rp, Mp = nm.rp, nm.Mp
     d = res.design
     rows = []  # (p Satterthwaite, symbol, (x0, x1), q, A)
     for s in MOTION:
         x_n = np.asarray(d.nodes[iso.symbol(s).axis], float)
         if len(x_n) < 2:
             continue
-        Phi, _, c = _fine_rows(res, meas, prep, s, step_m, kin, centres=True, values=False)
-        RPhi = Rp @ Phi
+        _, c, RPhi = _fine_of(res, meas, nm, s, step_m)  # the share's when it ran (nm.cache)
         for x0, x1 in zip(x_n[:-1], x_n[1:]):
             cols = (c > x0 + 1e-9) & (c < x1 - 1e-9)
             W = RPhi[:, cols]
@@ -2123,12 +2207,13 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     p0, s, iv, q, A, t1 = min(rows, key=lambda r: r[0])
     lam = np.linalg.eigvalsh(A)
     lam = lam[lam > lam.max() * 1e-12] if lam.size and lam.max() > 0 else lam[:0]
-    if lam.size >= 2:
-        p = quadratic_form_sf(lam, q)
+    n = len(rows)
+    approx = False
+    if lam.size >= 2:  # the level of one interval: pf = p n >= BETWEEN_NODES_P where p >= BETWEEN_NODES_P / n
+        p, approx = _tail(lam, q, p0, BETWEEN_NODES_P / n)
     elif lam.size:
         p = float(chi2.sf(q / lam[0], 1))
     else:
         p = p0
-    n = len(rows)
     pf = min(1.0, p * n)
-    return BetweenNodes(s, iv, float(p), float(pf), n, pf >= BETWEEN_NODES_P, float(q / t1))
+    return BetweenNodes(s, iv, float(p), float(pf), n, pf >= BETWEEN_NODES_P, float(q / t1), approx)

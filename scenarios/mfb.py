@@ -1720,8 +1720,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     noise = vol.residual_noise(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map)
     lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
     opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
+    # (every table's exact tail where the gate opens: the shares are reported with their p; elsewhere only where
+    # it could decide, core.volumetric.EXACT_TAIL_NEAR_LEVEL)
     share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map,
-                                   exact_p=model_error_held, noise=noise)
+                                   exact_p=model_error_held, all_exact=opens, noise=noise)
              if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
     # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
     # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model

@@ -471,3 +471,86 @@ def test_residual_noise_shared_gives_each_test_its_own_figures_and_is_refused_fo
                 f(res, *args, noise=nm, **kw)
     with pytest.raises(ConfigError, match="residual_noise: sigma_probe_m"):
         vol.residual_noise(res, meas, -1e-7, u0)
+
+
+def test_tail_choice_known_answers_and_the_exact_tail_where_a_decision_could_flip(monkeypatch):
+    """Session 35 (mfb35): with EXACT_TAIL_NEAR_LEVEL the residual tests take Imhof's exact tail only where it
+    could change a decision. Known answers of the rigorous lower bound: equal weights are a scaled chi-square,
+    the bound is then the exact tail (chi2_3 at x = 7.8147: 0.05); one weight: chi2_1; uneven weights: below the
+    exact tail, at or above each single term. The choice: far from the level Satterthwaite's p stands in,
+    labelled; near it (Satterthwaite within EXACT_TAIL_FACTOR of the level, or the bound below the level) the
+    exact tail, the same doubles as core.lsq.quadratic_form_sf; a case where Satterthwaite's p says "reject" and
+    the exact tail "fits" (weights 1 and 30 x 0.1 at x = 15: 8.2e-6 against 5.9e-4, level 1e-4) takes the exact
+    one; ``exact`` and the constant off take it everywhere."""
+    from scipy.stats import chi2
+
+    from core.lsq import quadratic_form_sf
+
+    assert vol._tail_lower_bound(np.full(3, 2.0), 2 * 7.814727903251178) == pytest.approx(0.05, rel=1e-12)
+    assert vol._tail_lower_bound(np.array([2.0]), 3.0) == chi2.sf(1.5, 1)
+    assert vol._tail_lower_bound(np.zeros(2), 1.0) == 0.0 and vol._tail_lower_bound(np.zeros(2), -1.0) == 1.0
+    for lam, x in ((np.array([3.0, 1.0]), 5.0), (np.array([1.0] + [0.1] * 30), 10.0),
+                   (np.geomspace(1e-3, 1.0, 60), 16.0), (np.array([1.0, 0.5] + [0.02] * 200), 15.0)):
+        low, ex = vol._tail_lower_bound(lam, x), quadratic_form_sf(lam, x)
+        assert chi2.sf(x / lam.max(), 1) <= low <= ex, (low, ex)
+
+    def sat(lam, x):
+        t1, t2 = lam.sum(), lam @ lam
+        return float(chi2.sf(x / (t2 / t1), t1 * t1 / t2))
+
+    monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", True)
+    far = np.array([1.0, 1.0] + [0.2] * 20)   # Satterthwaite 0.624, bound 0.297, exact 0.616 at x = 5
+    assert vol._tail(far, 5.0, sat(far, 5.0), 1e-3) == (sat(far, 5.0), True)
+    assert vol._tail(far, 5.0, sat(far, 5.0), 1e-3, exact=True) == (quadratic_form_sf(far, 5.0), False)
+    # Satterthwaite within the factor of the level: the exact tail (0.00212 against 1e-3 x 10)
+    assert vol._tail(far, 15.0, sat(far, 15.0), 1e-3) == (quadratic_form_sf(far, 15.0), False)
+    # Satterthwaite far above the level but the bound below it (100 weights 0.01-1, Satterthwaite 0.05, bound
+    # 7e-8): the exact tail, though here it agrees (0.0508)
+    many = np.linspace(0.01, 1.0, 100)
+    x = chi2.isf(0.05, many.sum() ** 2 / (many @ many)) * (many @ many) / many.sum()
+    assert sat(many, x) >= vol.EXACT_TAIL_FACTOR * 1e-3 > 1e-3 > vol._tail_lower_bound(many, x)
+    assert vol._tail(many, x, sat(many, x), 1e-3) == (quadratic_form_sf(many, x), False)
+    # the decision that would flip on Satterthwaite's p: it rejects at 1e-4, the exact tail does not
+    flip = np.array([1.0] + [0.1] * 30)
+    p, approx = vol._tail(flip, 15.0, sat(flip, 15.0), 1e-4)
+    assert sat(flip, 15.0) < 1e-5 and not approx and p == quadratic_form_sf(flip, 15.0) and 4e-4 < p < 8e-4
+    monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", False)
+    assert vol._tail(far, 5.0, sat(far, 5.0), 1e-3) == (quadratic_form_sf(far, 5.0), False)
+
+
+def test_between_node_test_takes_the_exact_tail_near_its_level_and_labels_the_approximate_one(meas3, monkeypatch):
+    """Session 35 (mfb35), EXACT_TAIL_NEAR_LEVEL on against off on the same noise model. The noise-free 3-axis
+    measurements' residuals (the model's own truncation) against a probing sigma chosen near the between-node
+    test's level (measured: 4.0e-9 m gives p_family 4.1e-4, a rejection; 4.3e-9 m 2.0e-3, a pass): there the
+    test takes the exact tail, the same doubles as with the constant off, and says so (p_approx False). Far
+    from it (3e-8 m: exact p 0.79) the p is Satterthwaite's of the same interval, labelled, the decision the
+    same (the exact tail is at or above the level, as the bound proves). The model-error share likewise: the
+    tables far from MFB_MODEL_ERROR_P carry Satterthwaite's p, named in p_approx; ``all_exact`` takes every one."""
+    meas, chain, nodes, rp = meas3
+    res = vol.identify_volumetric(meas, chain, nodes, rp)
+    u0 = np.zeros((12, 3))
+    for sig, fits in ((4.0e-9, False), (4.3e-9, True), (3e-8, True)):
+        nm = vol.residual_noise(res, meas, sig, u0)
+        monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", False)
+        ex = vol.between_nodes_fit(res, meas, sig, u0, noise=nm)
+        monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", True)
+        on = vol.between_nodes_fit(res, meas, sig, u0, noise=nm)
+        assert ex.fits is on.fits is fits and not ex.p_approx, (sig, ex, on)
+        assert (on.symbol, on.interval_m, on.intervals, on.ratio) == (ex.symbol, ex.interval_m, ex.intervals, ex.ratio)
+        near = ex.p_family < vol.EXACT_TAIL_FACTOR * vol.BETWEEN_NODES_P
+        assert on.p_approx is not near and on.as_dict()["p_approx"] is on.p_approx
+        if near:   # the case near the level: the exact tail, bit for bit
+            assert on == ex
+        else:      # Satterthwaite's p of that interval; the exact one (with the constant off) past the level
+            assert ex.p * ex.intervals >= vol.BETWEEN_NODES_P and on.p != ex.p
+            assert on.p * on.intervals >= vol.EXACT_TAIL_FACTOR * vol.BETWEEN_NODES_P
+    # the share (at 3e-8 m every table far from its level): Satterthwaite's p, labelled; all_exact: the exact tails
+    sh = vol.model_error_share(res, meas, 3e-8, u0, noise=nm)
+    assert set(sh.p_approx) == set(vol.MOTION) and sh.as_dict()["p_approx"] == list(vol.MOTION)
+    monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", False)
+    off = vol.model_error_share(res, meas, 3e-8, u0, noise=nm)
+    monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", True)
+    every = vol.model_error_share(res, meas, 3e-8, u0, noise=nm, all_exact=True)
+    assert off.p_approx == every.p_approx == () and every.p == off.p and every.z == sh.z == off.z
+    assert all(off.p[s] >= vol.MFB_MODEL_ERROR_P for s in vol.MOTION) and sh.entered == off.entered
+    assert all(sh.p[s] != off.p[s] for s in vol.MOTION)

@@ -45,6 +45,7 @@ def test_a_bump_between_two_nodes_is_named_there_and_the_map_is_off_there(bump_m
     bn = d["between_nodes"]
     assert not bn["fits"] and bn["symbol"] == "EXX" and bn["interval_mm"] == pytest.approx([0.0, 68.75])
     assert bn["p_family"] < 1e-8 and bn["intervals"] > 100 and bn["tested_ratio"] > 5
+    assert bn["p_approx"] is False   # a rejection: always the exact tail (session 35, EXACT_TAIL_NEAR_LEVEL)
     assert d["between_nodes_note"].startswith("between EXX's nodes at 0 and 68.75 mm the residuals are")
     assert "the U95 holds at the nodes, the map between them may be off by more" in d["between_nodes_note"]
     # against the truth (not the code's): the map the identification's own spline draws through its nodes is
@@ -70,6 +71,11 @@ def test_the_realistic_machine_gives_no_note_and_bad_input_is_refused():
     r = S.run("mfb-3axis", seed=4003, mc_runs=0)
     bn = r.doc["between_nodes"]
     assert bn["fits"] and bn["p_family"] >= vol.BETWEEN_NODES_P and "between_nodes_note" not in r.doc
+    # far from the level (p_family 1): with EXACT_TAIL_NEAR_LEVEL (session 35) Satterthwaite's p, labelled in the JSON
+    far = bn["p_family"] >= vol.EXACT_TAIL_FACTOR * vol.BETWEEN_NODES_P
+    assert bn["p_approx"] is (vol.EXACT_TAIL_NEAR_LEVEL and far)
+    me = r.doc["model_error"]
+    assert set(me["p_approx"]) <= set(me["p"]) and all(me["p"][s] >= vol.MFB_MODEL_ERROR_P for s in me["p_approx"])
     u0 = np.zeros((12, 3))
     for args, kw, match in (((-1e-7, u0), {}, "sigma_probe_m"), ((float("nan"), u0), {}, "sigma_probe_m"),
                             ((1e-7, np.zeros((12, 2))), {}, "u_cal_m"), ((1e-7, u0, (1e-4,)), {}, "u_place"),
