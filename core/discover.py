@@ -1392,7 +1392,7 @@ def _workpiece_unseen_without_outliers(Qk: np.ndarray, y: np.ndarray, rows: np.n
 #: left off: it mends none of the three (1010, 1092: the other touches predict the touch's sign at p 0.015 and
 #: 0.004 before the count of 12; 1080 passes, then part_change loses held-out as without the look, on a change
 #: that settled early) and changed no reading on 390 tuning campaigns (gen_a part_change, outlier, local_scale_defect, none,
-#: knock, reseat_hysteresis; gen_b and gen_c outlier, part_change): docs/discovery.md, "Session 35: a part change
+#: knock, reseat_hysteresis; gen_b and gen_c outlier, part_change): docs/discovery-studies.md, "Session 35: a part change
 #: carried by one touch, and the frame of gen_a's defect centres (cat35)".
 PART_CHANGE_OUTLIER_LOOK = False
 
@@ -7021,7 +7021,7 @@ CONFOUNDED_FALLBACK_LEAST_INFLATION = True
 #: cause in 134, 3 move): gen_a local_scale_defect 1009 (vis 2.46; the same pattern: a ripple won round 1, the bump
 #: refused beside it at -4.62 um^2, the ripple dropped) `unexplained` -> `local_scale_defect?`; gen_b
 #: lobing_per_setup 1067 and signal_latency 1008 gain an outlier finding beside `unexplained`; nothing right ->
-#: wrong, every workpiece within its check. Off: built, measured, for the lead (docs/discovery.md, "Session 35: the
+#: wrong, every workpiece within its check. Off: built, measured, for the lead (docs/discovery-studies.md, "Session 35: the
 #: round a dropped cause won, decided again").
 DROPPED_ROUND_REOPENED = False
 #: Whether a form the confounded step takes (:data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`: the form of smallest p
@@ -7033,7 +7033,7 @@ DROPPED_ROUND_REOPENED = False
 #: each form that passes had its chance at the held-out test, so a pass is the best of several. Session 35 (sel35).
 #: Measured on the same 1,659 tuning campaigns: 8 reach the step's form, 3 move, right names made hedged (gen_b c_drift
 #: 1178, 1187, 1196, vis 0.68-1.47; 1187: gain 0.275 against 6 x 0.189 um^2), workpieces unchanged; gen_a c_drift
-#: 1125 (9.6x among 6) and gen_b 1139 kept named. Off: built, measured, for the lead (docs/discovery.md,
+#: 1125 (9.6x among 6) and gen_b 1139 kept named. Off: built, measured, for the lead (docs/discovery-studies.md,
 #: "Session 35: the round a dropped cause won, decided again").
 CONFOUNDED_SELECTION_COUNTED = False
 
@@ -11453,7 +11453,7 @@ def _outliers_beside_kept(bl: Baseline, outliers, rows) -> np.ndarray:
 #: 0.99 -> 1.90 um against the truth, U95 max 5.6 -> 55.3 um. Off, and not proposed: on 256 tuning campaigns with an
 #: extension it withholds 55 extended workpieces, 38 of them better than the baseline's (20.1 um of error in sum), 7
 #: worse (1.0 um): the smooth's gain is uncertain over a campaign's few set-ups while its workpiece is right
-#: (docs/discovery.md, "Session 35: an extended workpiece offered only when earned").
+#: (docs/discovery-studies.md, "Session 35: an extended workpiece offered only when earned").
 SMOOTH_WORKPIECE_EARNED = False
 
 #: Whether the extended workpiece is offered as the estimate only where its U95 has not grown beyond
@@ -11469,7 +11469,7 @@ SMOOTH_WORKPIECE_EARNED = False
 #: 3 once (gen_a feed_latency 1009, 4.75: part_change? read, 13.61 um from the truth against the baseline's 4.96),
 #: besides gen_a knock 0 (5.5, audit35's F4); the next are 2.85 (gen_c speed_pretravel 11, which mends the workpiece
 #: 1.04 -> 0.65 um) and 2.25 (gen_a feed_latency 1003, 3.49 -> 0.47 um); no extended workpiece that mends the
-#: baseline's is withheld, readings and confidence never move (the rule acts after them): docs/discovery.md,
+#: baseline's is withheld, readings and confidence never move (the rule acts after them): docs/discovery-studies.md,
 #: "Session 35: an extended workpiece offered only when earned". On since session 35 (the lead, on these tuning figures;
 #: the blind set E read with it after: docs/discovery.md, "The last blind check").
 WORKPIECE_U95_GROWTH_WITHHELD = True

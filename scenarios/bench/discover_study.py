@@ -14,7 +14,7 @@ discovery's noise on the effect-free campaign of the same seed. On the
 realistic bar (the default, as here) that noise holds the bar's deviation
 from its calibration, and the hidden effects are 0.2-0.8 sigma of it: the
 MFB row's catalogue rate is then over no campaign (below_visibility
-counts them), as docs/discovery.md, "Session 35: MFB discovery with the
+counts them), as docs/discovery-studies.md, "Session 35: MFB discovery with the
 effects hidden in the simulator", measures on tuning seeds.
 """
 

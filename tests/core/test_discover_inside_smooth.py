@@ -8,7 +8,7 @@ along the axis, which the map passes through whatever their values) it was named
 beyond it. The rule refuses it there when the map's structure beyond the bump is significant: the bump is then a
 special case of the map that the data reject. Known answers on a toy design (five positions along x, a polynomial map
 that holds any function of them), and set C's gen_a feed_latency 10105 (a spent blind seed, the known answer).
-docs/discovery.md, "Session 35: a bump the smooth map holds and explains more than, refused".
+docs/discovery-studies.md, "Session 35: a bump the smooth map holds and explains more than, refused".
 """
 
 from types import SimpleNamespace

@@ -11,7 +11,7 @@ Two rules, each behind its own constant in :mod:`core.discover`, both off:
   (:data:`core.discover.CONFOUNDED_FALLBACK_LEAST_INFLATION`) is counted as the held-out fallback's is
   (:func:`core.discover._fallback_short`).
 
-docs/discovery.md, "Session 35: the round a dropped cause won, decided again".
+docs/discovery-studies.md, "Session 35: the round a dropped cause won, decided again".
 """
 
 from __future__ import annotations

@@ -214,7 +214,7 @@ def test_an_effect_outside_the_catalogue_with_a_catalogue_reading_is_scored_outs
 #: feed_latency 1009, x4.75, its workpiece 13.6 um from the truth against the baseline's 4.96); the next are x2.85
 #: (gen_c speed_pretravel 11, whose extension mends the workpiece 1.04 -> 0.65 um) and x2.25 (gen_a feed_latency
 #: 1003, 3.49 -> 0.47 um); 5 exceed x2, 28 x1.5. The same factor as core.discover.WORKPIECE_U95_GROWTH_MAX
-#: (docs/discovery.md, "Session 35: an extended workpiece offered only when earned").
+#: (docs/discovery-studies.md, "Session 35: an extended workpiece offered only when earned").
 U95_GROWTH_MAX = 3.0
 #: Campaigns at SEEDS whose extended U95 grows beyond :data:`U95_GROWTH_MAX` (a ceiling, as :data:`KNOWN_MISNAMED`: a
 #: new one fails, a mended one passes and should be removed): gen_a knock 0, an unnamed smooth in ``feature`` adopted

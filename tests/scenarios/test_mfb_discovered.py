@@ -8,7 +8,7 @@ the volumetric baseline must name it, with magnitudes within their U95 of what w
 One tuning seed (simulator 4000), the 3-axis plan, the bar as calibrated (``bar_cal_error`` off): discovery's noise
 on this plan is the residuals' (no repeats), and on the realistic bar it holds the bar's 0.2-0.35 um deviation from
 its calibration, 2.5-4.5 x the 0.125 um touch noise, so that every effect hidden_mfb draws is 0.2-0.8 sigma of it
-(docs/discovery.md, "Session 35: MFB discovery with the effects hidden in the simulator"). With the bar as
+(docs/discovery-studies.md, "Session 35: MFB discovery with the effects hidden in the simulator"). With the bar as
 calibrated, discovery's sigma on the effect-free campaign is 0.128 um, and the hidden effects' parts outside the
 baseline's column space are 1.29 sigma (lobing per stylus) and 1.86 sigma (the drift): visible, and asserted so,
 by scenarios.hidden.mfb_effect_outside_baseline (the campaign less the same seed without the effect: the same
