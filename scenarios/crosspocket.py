@@ -528,6 +528,18 @@ def conditional_table2() -> list:
     return rows
 
 
+def conditional_note(rows: list) -> str:
+    """The note on :func:`conditional_table2`'s ``rows``, its figures theirs: the range of U_XC, U_YC given the
+    part's datum over every reading, model and C, and the hand floor (:func:`_hand_xc_floor_um`). The note
+    was a typed "0.63-0.89 um" while the rows said 0.622-0.887 (review35 F4)."""
+    given = [v for r in rows for part in r["given_datum"] for v in part]
+    floor = sorted({v for pair in _hand_xc_floor_um(CROSS_ANGLES_DEG) for v in pair})
+    floor_s = f"{floor[0]:g}" if len(floor) == 1 else f"{floor[0]:g}-{floor[-1]:g}"
+    return (f"conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
+            f"fall to {min(given):.2f}-{max(given):.2f} um in every reading and model (paper 0.9-1.2; a rigid part "
+            f"on a known map: {floor_s}): how the part's datum is fixed carries Table 2's excess.")
+
+
 #: :func:`evaluation_point_steps`: from the study's former evaluation points to identify's, one step at a time.
 EVALUATION_STEPS = (("contact points, one level (the study before)", {"stylus_r_m": 0.0, "heights": False}),
                     ("tip centres, one level", {"heights": False}),
@@ -723,10 +735,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "vmt identify builds (evaluation_point_steps: from the contact points, one step at a time).",
             "conditioning (round 4): with 2 C angles one direction of the parameters (ECY at the y = +-110 mm "
             "nodes with the pocket's G near the arm ends) carries 94 % of the variance of Fig. 18(a)'s largest "
-            "value under eq 15 as printed; largest/median U95 over the directions 318 (2 angles), 48 (3), 41 (4). "
-            "conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
-            "fall to 0.63-0.89 um in every reading and model (paper 0.9-1.2; a rigid part on a known map: 0.58): "
-            "how the part's datum is fixed carries Table 2's excess.",
+            "value under eq 15 as printed; largest/median U95 over the directions 318 (2 angles), 48 (3), 41 (4).",
         ],
         "arrays": arrays,
     }
@@ -736,6 +745,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
         out["evaluation_point_steps"] = evaluation_point_steps()
         out["conditioning"] = conditioning_study()
         out["conditional_table2"] = conditional_table2()
+        out["notes"].append(conditional_note(out["conditional_table2"]))
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 
