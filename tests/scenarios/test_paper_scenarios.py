@@ -346,6 +346,14 @@ def test_the_printed_conditional_range_is_the_jsons(cpu_run):
     assert (m[1], m[2]) == (f"{min(given):.2f}", f"{max(given):.2f}")
     assert len(floors) == 1 and float(m[3]) == floors.pop()
     assert [ln[len("note: "):] for ln in text.splitlines() if ln.startswith("note: ")] == cpu["notes"]
+    # round 4's note beside it (94 %, 318 / 48 / 41 were typed too): the rows' own, eq 15 as printed, identify
+    rows = {len(r["c_angles_deg"]): r for r in cpu["conditioning"]
+            if r["reading"] == "eq 15 as printed" and r["model"].startswith("identify")}
+    m4 = re.search(r"^note: conditioning \(round 4\):.* carries (\d+) % .* over the directions (\d+) \(2 angles\), "
+                   r"(\d+) \(3\), (\d+) \(4\)\.$", text, re.M)
+    assert m4, text
+    assert int(m4[1]) == round(100 * rows[2]["least_determined"][0]["share_of_max_g_variance"])
+    assert [int(v) for v in m4.groups()[1:]] == [round(rows[n]["largest_to_median_u95"]) for n in (2, 3, 4)]
 
 
 def test_case1_closed_loop_against_the_truth():
