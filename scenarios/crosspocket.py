@@ -528,6 +528,32 @@ def conditional_table2() -> list:
     return rows
 
 
+def conditioning_note(rows: list) -> str:
+    """The note on :func:`conditioning_study`'s ``rows``, its figures theirs (under eq 15 as printed, identify's
+    model): the share of Fig. 18(a)'s largest variance in the least determined direction with 2 C angles, and
+    the largest/median U95 over the directions with 2, 3 and 4 angles (typed as 94 %, 318, 48, 41 before)."""
+    first = (CONDITIONING_READINGS[0][0], CONDITIONING_MODELS[0][0])
+    by = {len(r["c_angles_deg"]): r for r in rows if (r["reading"], r["model"]) == first}
+    top = by[2]["least_determined"][0]
+    ratio = {n: f"{by[n]['largest_to_median_u95']:.0f}" for n in (2, 3, 4)}
+    return (f"conditioning (round 4): with 2 C angles one direction of the parameters (ECY at the y = +-110 mm "
+            f"nodes with the pocket's G near the arm ends) carries {100 * top['share_of_max_g_variance']:.0f} % of "
+            f"the variance of Fig. 18(a)'s largest value under eq 15 as printed; largest/median U95 over the "
+            f"directions {ratio[2]} (2 angles), {ratio[3]} (3), {ratio[4]} (4).")
+
+
+def conditional_note(rows: list) -> str:
+    """The note on :func:`conditional_table2`'s ``rows``, its figures theirs: the range of U_XC, U_YC given the
+    part's datum over every reading, model and C, and the hand floor (:func:`_hand_xc_floor_um`). The note
+    was a typed "0.63-0.89 um" while the rows said 0.622-0.887 (review35 F4)."""
+    given = [v for r in rows for part in r["given_datum"] for v in part]
+    floor = sorted({v for pair in _hand_xc_floor_um(CROSS_ANGLES_DEG) for v in pair})
+    floor_s = f"{floor[0]:g}" if len(floor) == 1 else f"{floor[0]:g}-{floor[-1]:g}"
+    return (f"conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
+            f"fall to {min(given):.2f}-{max(given):.2f} um in every reading and model (paper 0.9-1.2; a rigid part "
+            f"on a known map: {floor_s}): how the part's datum is fixed carries Table 2's excess.")
+
+
 #: :func:`evaluation_point_steps`: from the study's former evaluation points to identify's, one step at a time.
 EVALUATION_STEPS = (("contact points, one level (the study before)", {"stylus_r_m": 0.0, "heights": False}),
                     ("tip centres, one level", {"heights": False}),
@@ -721,12 +747,6 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
             "Read from the numbers, not stated by the paper.",
             "evaluation_points: the X/Y tables at the commanded tip centres at the targets' heights, the design "
             "vmt identify builds (evaluation_point_steps: from the contact points, one step at a time).",
-            "conditioning (round 4): with 2 C angles one direction of the parameters (ECY at the y = +-110 mm "
-            "nodes with the pocket's G near the arm ends) carries 94 % of the variance of Fig. 18(a)'s largest "
-            "value under eq 15 as printed; largest/median U95 over the directions 318 (2 angles), 48 (3), 41 (4). "
-            "conditional_table2 (round 5): given the part's datum (shift, rotation, scale of G), U_XC and U_YC "
-            "fall to 0.63-0.89 um in every reading and model (paper 0.9-1.2; a rigid part on a known map: 0.58): "
-            "how the part's datum is fixed carries Table 2's excess.",
         ],
         "arrays": arrays,
     }
@@ -736,6 +756,7 @@ def cross_pocket_uncertainty(runs: int = 1000, seed: int = 1, progress=None, *, 
         out["evaluation_point_steps"] = evaluation_point_steps()
         out["conditioning"] = conditioning_study()
         out["conditional_table2"] = conditional_table2()
+        out["notes"] += [conditioning_note(out["conditioning"]), conditional_note(out["conditional_table2"])]
     out["seconds"] = round(time.perf_counter() - t0, 2)
     return out
 

@@ -496,23 +496,41 @@ class Terminated(KeyboardInterrupt):
         self.signum = signum
 
 
+#: True once a SIGTERM has been turned into :class:`Terminated` in this process (:func:`terminating_as_interrupt`).
+_TERM_TAKEN = False
+
+
 @contextlib.contextmanager
 def terminating_as_interrupt():
     """Inside the block SIGTERM raises :class:`Terminated`, handled as Ctrl-C is (cleanup, one line, exit
     128 + 15 = 143) instead of ending the process without a word (review30 F7). Outside the main thread
-    (where no handler can be set) the block runs unchanged."""
+    (where no handler can be set) the block runs unchanged.
+
+    The first SIGTERM only: from then on SIGTERM is ignored, in this block, in the blocks around it and after
+    them, until the process exits. GNU timeout(1) sends SIGTERM to the command and then to its process group,
+    so one "stop" can arrive twice; a second one raised a fresh :class:`Terminated` (no text) inside the first
+    one's cleanup, or, once the block had put the default action back, killed the process before or after its
+    line: ``vmt probe`` lost its ``[60 of 368 rows in log.csv; continue with --resume]`` (review35 F1). The
+    process has been told to end and is ending; Ctrl-C (SIGINT) and SIGKILL (``timeout -k``) still stop a
+    cleanup that hangs. A caller that runs a command in its own process (tests) gets SIGTERM ignored after a
+    SIGTERM it received during the command, never otherwise."""
     def raise_it(signum, _frame):
+        global _TERM_TAKEN
+        if _TERM_TAKEN:                 # a second SIGTERM pending before the first was ignored: drop it
+            return
+        _TERM_TAKEN = True
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
         raise Terminated(signum)
 
     try:
-        before = signal.signal(signal.SIGTERM, raise_it)
+        before = signal.signal(signal.SIGTERM, signal.SIG_IGN if _TERM_TAKEN else raise_it)
     except ValueError:      # not the main thread
         yield
         return
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, before)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN if _TERM_TAKEN else before)
 
 
 def progress_line(label: str):

@@ -8,7 +8,9 @@ def register(sub) -> None:
     p.add_argument("kind", choices=("linuxcnc", "grbl"),
                    help="linuxcnc: the LOGOPEN file of a vmt machine program run (N<row> G1 X.. Y.. Z.. lines), "
                         "a PROBEOPEN file (3 or 9 numbers a line) or another LOGOPEN file "
-                        "(G1 X.. Y.. Z.. lines); grbl: a session transcript")
+                        "(G1 X.. Y.. Z.. lines); grbl: a session transcript (its [PRB] machine positions are "
+                        "logged as they are: the stylus-tip centre's only if the controller's machine coordinates "
+                        "are; docs/formats.md, 'GRBL transcript')")
     p.add_argument("file", help="the probe file or transcript")
     p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "
                    "is a surface probed along Z and the plan is built from it (points that are not a grid's "

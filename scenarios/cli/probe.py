@@ -20,7 +20,10 @@ def register(sub) -> None:
     p = sub.add_parser("probe", help="run a probing plan on a machine (GRBL live or virtual)")
     option(p, "--controller", metavar="URL", required=True, old=("--machine",),
                    help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200], virtual: (built-in scene) "
-                        "or virtual:cross-pocket (the simulator's nmv3000 and part)")
+                        "or virtual:cross-pocket (the simulator's nmv3000 and part). GRBL: the plan goes out as G53 "
+                        "targets and the log holds the [PRB] machine positions, with no tool length offset: the "
+                        "stylus-tip centre's only if the controller's machine coordinates are (the emulator's are; "
+                        "a real machine's are the spindle's, J from the tip: docs/formats.md, 'GRBL transcript')")
     p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
     add_settings_args(p)
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")

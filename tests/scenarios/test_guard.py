@@ -603,3 +603,63 @@ def test_sigterm_puts_the_outputs_back_and_says_so_as_ctrl_c_does(tmp_path, work
     assert err.strip().splitlines()[-1] == "vmt design: terminated (SIGTERM)", err
     assert "Traceback" not in err
     assert keep.read_text() == "PRE-EXISTING\n" and not list(tmp_path.glob(".vmt-kept*"))
+
+
+#: A command run through run_command whose work replaces its --out, then waits inside a nested
+#: terminating_as_interrupt block (as vmt probe's around its campaign) and, when stopped, takes 10 ms to say
+#: what it kept (vmt probe counts the rows on disk); after the command, 50 ms more before the process exits.
+_TWO_SIGTERMS = """
+import argparse, sys, time
+from scenarios.cli.guard import run_command, terminating_as_interrupt
+
+def work(args):
+    with open(args.out, "w") as f:
+        f.write("half-written")
+    with terminating_as_interrupt():
+        try:
+            print("ready", flush=True)
+            time.sleep(60)
+        except KeyboardInterrupt as e:
+            time.sleep(0.010)
+            e.args = ("[7 of 9 rows in log.csv; continue with --resume]",)
+            raise
+
+rc = run_command(argparse.Namespace(command="simulate", func=work, out=sys.argv[1]))
+time.sleep(0.050)
+sys.exit(rc)
+"""
+
+
+def test_a_second_sigterm_neither_loses_the_line_nor_kills_the_process(tmp_path):
+    """review35 F1: GNU timeout(1) sends SIGTERM to the command and then to its process group, so the command
+    can get it twice. terminating_as_interrupt raised on every SIGTERM and put the default action back when its
+    block ended: a second SIGTERM 1-20 ms after the first raised a fresh interrupt inside the first one's
+    cleanup (vmt probe's '[N of M rows in LOG; continue with --resume]' lost) or killed the process (-15).
+    Now the first one is the interrupt and later ones are ignored: over ten runs, a second SIGTERM 1 to 19 ms
+    after the first (in the 10 ms cleanup for the first five, after the command's block for the others), the
+    line with its note every time, exit 143, the replaced output put back. About 0.5 s a run (Python's start)."""
+    import signal
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path / "out.txt"
+    for gap_ms in range(1, 20, 2):
+        out.write_text("PRE-EXISTING\n")
+        proc = subprocess.Popen([sys.executable, "-c", _TWO_SIGTERMS, str(out)], cwd=root, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, env={**os.environ, "PYTHONPATH": str(root)})
+        try:
+            assert proc.stdout.readline() == "ready\n", proc.communicate()
+            proc.send_signal(signal.SIGTERM)
+            time.sleep(gap_ms / 1000)
+            proc.send_signal(signal.SIGTERM)
+            _, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        said = (gap_ms, proc.returncode, err)
+        assert proc.returncode == 143, said
+        assert err == "vmt simulate: terminated (SIGTERM) [7 of 9 rows in log.csv; continue with --resume]\n", said
+        assert out.read_text() == "PRE-EXISTING\n" and not list(tmp_path.glob(".vmt-kept*")), said

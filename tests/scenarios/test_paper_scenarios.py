@@ -16,7 +16,11 @@ PAPER_G = {(0, 75): 6.5, (0, 75, 130): 3.0, (0, 75, 130, 210): 2.1}
 
 @pytest.fixture(scope="session")
 def cpu_run(tmp_path_factory):
-    """The study through the CLI, with the progress calls the study made to the CLI's progress line."""
+    """The study through the CLI, with the progress calls the study made to the CLI's progress line and the
+    text it printed."""
+    import contextlib
+    import io
+
     import scenarios.crosspocket as cp
 
     out = tmp_path_factory.mktemp("cpu") / "cpu.json"
@@ -29,11 +33,13 @@ def cpu_run(tmp_path_factory):
         return orig(*a, progress=seen, **kw)
 
     cp.cross_pocket_uncertainty = spy
+    printed = io.StringIO()
     try:
-        assert main(["scenario", "cross-pocket-uncertainty", "--json", str(out), "--mc", "400"]) == 0
+        with contextlib.redirect_stdout(printed):
+            assert main(["scenario", "cross-pocket-uncertainty", "--json", str(out), "--mc", "400"]) == 0
     finally:
         cp.cross_pocket_uncertainty = orig
-    return json.loads(out.read_text()), calls
+    return json.loads(out.read_text()), calls, printed.getvalue()
 
 
 @pytest.fixture(scope="session")
@@ -295,7 +301,7 @@ def test_two_angle_case_and_table2_drivers(cpu):
     Fig. 18(a): with C = 0, 75 deg one direction of the parameters (ECY at the y = +-110 mm edge nodes with the
     pocket's G) has U95 621 um (as a length at 110 mm) and carries 94 % of the variance of the largest U95 of
     G (89.4 um); the design's largest / median U95 over its directions is 318 against 41 with 4 angles.
-    Table 2: given the part's datum (shift, rotation, scale of G), U_XC and U_YC fall to 0.63-0.89 um in every
+    Table 2: given the part's datum (shift, rotation, scale of G), U_XC and U_YC fall to 0.62-0.89 um in every
     reading and model (paper 0.9-1.2), above the hand floor of a rigid part on a known map (0.58 um).
     """
     rows = {(r["reading"], r["model"][:8], len(r["c_angles_deg"])): r for r in cpu["conditioning"]}
@@ -322,6 +328,32 @@ def test_two_angle_case_and_table2_drivers(cpu):
     for reading in ("eq 15 as printed", "spheres as datum"):
         np.testing.assert_allclose(by[(reading, "identify")]["given_heights"],
                                    by[(reading, "paper's ")]["as_identified"], atol=2e-3)
+
+
+def test_the_printed_conditional_range_is_the_jsons(cpu_run):
+    """review35 F4: the run printed (and put in its JSON's notes) "U_XC and U_YC fall to 0.63-0.89 um", a typed
+    string, beside its own conditional_table2 spanning 0.622-0.887 um. The note's range and hand floor are now
+    the rows' own: the printed figures are the JSON's given_datum extremes to the 2 decimals printed, and the
+    floor the JSON's hand floor; the printed notes are the JSON's notes."""
+    import re
+
+    cpu, _, text = cpu_run
+    given = [v for r in cpu["conditional_table2"] for part in r["given_datum"] for v in part]
+    floors = {v for r in cpu["conditioning"] for pair in r["hand_floor_u_xc_yc_um"] for v in pair}
+    m = re.search(r"^note: conditional_table2 \(round 5\):.* fall to (\d+\.\d+)-(\d+\.\d+) um in every reading "
+                  r"and model \(paper 0\.9-1\.2; a rigid part on a known map: ([\d.]+)\)", text, re.M)
+    assert m, text
+    assert (m[1], m[2]) == (f"{min(given):.2f}", f"{max(given):.2f}")
+    assert len(floors) == 1 and float(m[3]) == floors.pop()
+    assert [ln[len("note: "):] for ln in text.splitlines() if ln.startswith("note: ")] == cpu["notes"]
+    # round 4's note beside it (94 %, 318 / 48 / 41 were typed too): the rows' own, eq 15 as printed, identify
+    rows = {len(r["c_angles_deg"]): r for r in cpu["conditioning"]
+            if r["reading"] == "eq 15 as printed" and r["model"].startswith("identify")}
+    m4 = re.search(r"^note: conditioning \(round 4\):.* carries (\d+) % .* over the directions (\d+) \(2 angles\), "
+                   r"(\d+) \(3\), (\d+) \(4\)\.$", text, re.M)
+    assert m4, text
+    assert int(m4[1]) == round(100 * rows[2]["least_determined"][0]["share_of_max_g_variance"])
+    assert [int(v) for v in m4.groups()[1:]] == [round(rows[n]["largest_to_median_u95"]) for n in (2, 3, 4)]
 
 
 def test_case1_closed_loop_against_the_truth():
