@@ -1340,6 +1340,9 @@ def test_confounded_fallback_least_inflation(monkeypatch):
     # (session 32: HEDGED_SHIFT_CARRIED, on, covers the by-gain reading's error in its U95, 9.48 against 0.56 +
     # 9.69; switched off here to see the form's own failure, which the least inflated form mends by the estimate)
     monkeypatch.setattr(D, "HEDGED_SHIFT_CARRIED", None)
+    # (session 35: WORKPIECE_U95_GROWTH_WITHHELD, on, withholds that reading's extended workpiece; off here too, to
+    # see the form's own estimate)
+    monkeypatch.setattr(D, "WORKPIECE_U95_GROWTH_WITHHELD", False)
     gain = blind_outcome(gen_a, "c_drift", 1267, generator="gen_a")
     assert gain.cause == "c_drift" and gain.wp_ext_um > gain.wp_base_um + gain.wp_u95_um
     monkeypatch.setattr(D, "CONFOUNDED_FALLBACK_LEAST_INFLATION", True)
