@@ -1782,8 +1782,6 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
         ``sigma_probe_m`` negative or not finite; ``u_cal_m`` not (N, 3); ``u_place`` not 6 values >= 0;
         ``noise`` computed for other inputs.
     """
-    from scipy.stats import chi2
-
     u_cal, up = _noise_inputs("lack_of_fit", sigma_probe_m, u_cal_m, u_place)
     nm = _noise_of("lack_of_fit", noise, res, list(meas), sigma_probe_m, u_cal, up, cal_map)
     r, R, Sp, RLc, rp, Mp = nm.r, nm.R, nm.Sp, nm.RLc, nm.rp, nm.Mp
@@ -1792,8 +1790,8 @@ def lack_of_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m, u_pl
     if not (t1 > 0 and t2 > 0 and t_all > 0):
         return None
     q = float(rp @ rp)
-    c, nu = t2 / t1, t1 * t1 / t2
-    p = float(chi2.sf(q / c, nu))
+    nu = t1 * t1 / t2
+    p = _satterthwaite_sf(q, t1, t2)
     return LackOfFit(float(np.sqrt(r @ r / len(r))), float(np.sqrt(t_all / len(r))), float(nu), p,
                      p >= LACK_OF_FIT_P, float(np.sqrt(q / t1)))
 
@@ -1832,6 +1830,15 @@ EXACT_TAIL_NEAR_LEVEL = True
 #: (:data:`EXACT_TAIL_NEAR_LEVEL`): the approximate p reported is then far from the level, and on the side the
 #: decision (the lower bound's) took.
 EXACT_TAIL_FACTOR = 10.0
+
+
+def _satterthwaite_sf(q: float, t1: float, t2: float) -> float:
+    """Satterthwaite's tail of a quadratic form ``sum_j lam_j Z_j^2`` at ``q``: the scaled chi-square ``c chi2_nu``
+    with the form's mean ``t1 = sum lam`` and ``t2 = sum lam^2`` (``c = t2 / t1``, ``nu = t1^2 / t2``), as the
+    lack-of-fit test, the model-error share and the between-node test take it."""
+    from scipy.stats import chi2
+
+    return float(chi2.sf(q / (t2 / t1), t1 * t1 / t2))
 
 
 def _tail_lower_bound(lam: np.ndarray, x: float) -> float:
@@ -2078,8 +2085,7 @@ def model_error_share(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
         lam = lam[lam > (lam.max() * 1e-12 if lam.size and lam.max() > 0 else np.inf)]
         if lam.size >= 2:
             t1, t2 = float(lam.sum()), float(lam @ lam)
-            pv[k], ap = _tail(lam, float(qk), float(chi2.sf(float(qk) / (t2 / t1), t1 * t1 / t2)),
-                              MFB_MODEL_ERROR_P, all_exact)
+            pv[k], ap = _tail(lam, float(qk), _satterthwaite_sf(float(qk), t1, t2), MFB_MODEL_ERROR_P, all_exact)
             if ap:
                 approx.append(syms[k])
         elif lam.size:  # one direction: a scaled chi-square of 1 degree
@@ -2207,7 +2213,7 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
             if not (t1 > 0 and t2 > 0):
                 continue
             q = float(np.sum((W.T @ rp) ** 2))
-            rows.append((float(chi2.sf(q / (t2 / t1), t1 * t1 / t2)), s, (float(x0), float(x1)), q, A, t1))
+            rows.append((_satterthwaite_sf(q, t1, t2), s, (float(x0), float(x1)), q, A, t1))
     if not rows:
         return None
     p0, s, iv, q, A, t1 = min(rows, key=lambda r: r[0])
