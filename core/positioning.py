@@ -76,8 +76,8 @@ from .atomic import write_text_atomic
 from .exceptions import VmtError, counted
 from .probelog import (COMMENT_AFTER_HEADER, OK_CELLS, T_MAX_S, TEMP_RANGE_C, _comment_row, _num, add_meta,
                        csv_lines, is_number, last_row_check, ok_statuses, step_back, value_range)
-from .probelog import (NUMBER_FORMAT_KEY, WRITE_ON_STEP_RTOL_POSITIONING, most_decimals, number_format_value, on_step,
-                       parse_number_format, step_decimals)
+from .probelog import (NUMBER_FORMAT_KEY, WRITE_ON_STEP_RTOL_POSITIONING, first_finer, most_decimals,
+                       number_format_value, on_step, parse_number_format, step_decimals)
 
 FORMAT = "positioning-log/1"
 #: Format of :meth:`Iso2302Result.to_report` (what ``vmt iso230-2 --json`` writes).
@@ -579,10 +579,9 @@ def _held_to_declared(name: str, text, decimals: int, where) -> None:
     """Refuse the first cell of ``text`` (a column's cells, row by row) written with more decimals than the
     ``decimals`` the ``number_format`` line declares for column ``name`` (the probe log reader's rule and
     words); ``where(r)`` names row ``r``."""
-    k = most_decimals(text) if len(text) else None
-    if k is None or k <= decimals:
+    r = first_finer(text, decimals)
+    if r is None:
         return
-    r = next(i for i, c in enumerate(text) if (most_decimals([c]) or 0) > decimals)
     at = where(r) if where is not None else f"row {r}"
     raise PositioningLogError(
         f"{at}: column {name!r}: {text[r].strip()[:40]!r} has more decimals than the {decimals} the metadata "

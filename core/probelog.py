@@ -222,6 +222,15 @@ def most_decimals(cells) -> int | None:
 _EOL = re.compile(r"\r\n|\r|\n")
 
 
+def first_finer(cells, decimals: int) -> int | None:
+    """The index of the first cell written with more than ``decimals`` decimals (:func:`most_decimals`), or None:
+    the cell a ``number_format`` line's refusal names (the probe log's reader and ``core.positioning``'s)."""
+    k = most_decimals(cells) if len(cells) else None
+    if k is None or k <= decimals:
+        return None
+    return next(i for i, c in enumerate(cells) if (most_decimals([c]) or 0) > decimals)
+
+
 def csv_lines(text: str) -> list[str]:
     """The lines of ``text``, ended by ``\r\n``, ``\r`` or ``\n`` only (:data:`_EOL`), without their ends.
 
@@ -782,8 +791,9 @@ class _Columns:
         d, k = self.decimals[j], most_decimals(cells)
         self.decimals[j] = k if d is None else d if k is None else max(d, k)
         want = self.declared.get(j)
-        if want is not None and k is not None and k > want and self.declared_error is None:
-            r = next(i for i, c in enumerate(cells) if (most_decimals([c]) or 0) > want)
+        r = (first_finer(cells, want) if want is not None and k is not None and k > want and self.declared_error is None
+             else None)   # (the block's count k above: the search only where a cell is finer, once per log)
+        if r is not None:
             self.declared_error = (
                 f"{self.src}: row {row0 + r} (line {lines[r]}): column {self.header[j]!r}: {_shown(cells[r].strip())} "
                 f"has more decimals than the {want} the metadata {NUMBER_FORMAT_KEY} declares for the column: "
