@@ -40,7 +40,7 @@ def test_without_linuxcnc_every_controller_test_fails_and_none_skips(tmp_path):
     path = str(Path(sys.executable).parent)
     assert not (Path(path) / "linuxcnc").exists()
     env = {**os.environ, "PATH": path, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
-           "TMPDIR": str(tmp_path)}
+           "TMPDIR": str(tmp_path), "COLUMNS": "1000"}    # pytest cuts summary lines to the terminal's width
     r = _pytest(["-p", "no:xdist", "-rfEs", "tests/controllers"], ROOT, env)
     out = r.stdout + r.stderr
     n = _counts(out)
@@ -50,7 +50,10 @@ def test_without_linuxcnc_every_controller_test_fails_and_none_skips(tmp_path):
     assert collected >= 12, out[-3000:]       # the probing loop's 6 tests and the rotary loop's 6
     said = ("linuxcnc not found: install Debian's linuxcnc-uspace (apt-get install -y linuxcnc-uspace; make "
             "test-controllers does) (tests/controllers fail, never skip, without LinuxCNC)")
-    assert out.count(said) == collected, out[-3000:]               # the gate's line, once per test
+    # the gate's line closes one short-summary line per test (the error sections repeat it above them)
+    summary = [ln for ln in out.splitlines()
+               if ln.startswith(("ERROR ", "FAILED ")) and ln.endswith(" - Failed: " + said)]
+    assert len(summary) == collected and len({ln.split(" - ")[0] for ln in summary}) == collected, out[-3000:]
     assert "During handling" not in out and "raise HardwareError" not in out    # the line alone, no traceback
     assert "test_linuxcnc_rotary.py" in out and "test_linuxcnc_loop.py" in out
 
