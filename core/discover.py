@@ -5531,8 +5531,9 @@ def _half_power_nc(k: int, alpha: float) -> float:
 #: Set C's gen_a feed_latency 10105 (spent): ``local_scale_defect?`` (half-width 4.33 mm) beside a fine periodic
 #: term, its signal wholly inside the map (outside 2e-24 noise variances; half power 25.9), the map 17.4 against
 #: 11.8 um^2 and beyond the bump p = 4.5e-4, the bump beyond the map p = 1. False: the behaviour before (named
-#: ambiguous, ``indistinguishable_counter``).
-INSIDE_SMOOTH_REFUSED = False
+#: ambiguous, ``indistinguishable_counter``). Switched on by the lead in session 36 before blind set F (it moved 0
+#: of 830 tuning readings); set F reads it (docs/discovery.md, "The last blind check").
+INSIDE_SMOOTH_REFUSED = True
 
 
 def _smooth_verdict(bl, cause, st: _State, E: np.ndarray, sigma: float, tries: float, settings) -> dict:
@@ -7022,8 +7023,9 @@ CONFOUNDED_FALLBACK_LEAST_INFLATION = True
 #: refused beside it at -4.62 um^2, the ripple dropped) `unexplained` -> `local_scale_defect?`; gen_b
 #: lobing_per_setup 1067 and signal_latency 1008 gain an outlier finding beside `unexplained`; nothing right ->
 #: wrong, every workpiece within its check. Off: built, measured, for the lead (docs/discovery-studies.md, "Session 35: the
-#: round a dropped cause won, decided again").
-DROPPED_ROUND_REOPENED = False
+#: round a dropped cause won, decided again"). Switched on by the lead in session 36 before blind set F (0 right ->
+#: wrong on the tuning campaigns); set F reads it (docs/discovery.md, "The last blind check").
+DROPPED_ROUND_REOPENED = True
 #: Whether a form the confounded step takes (:data:`CONFOUNDED_FALLBACK_LEAST_INFLATION`: the form of smallest p
 #: refused as confounded, the least inflated of the cause's other significant forms that pass every test taken) is
 #: counted as :data:`FALLBACK_SELECTION_COUNTED` counts the held-out fallback's (True): named hedged unless its

@@ -21,8 +21,9 @@ from core.units import UM
 
 
 def test_rule_as_shipped():
-    """Built and off (session 35: the lead's blind check runs the engine as it was)."""
-    assert D.INSIDE_SMOOTH_REFUSED is False
+    """Built off in session 35 (the lead's blind check ran the engine as it was); on from session 36, before blind
+    set F (it moved 0 of 830 tuning readings)."""
+    assert D.INSIDE_SMOOTH_REFUSED is True
 
 
 def _toy(field, seed, n_per=24, sigma_um=0.3):
