@@ -123,6 +123,9 @@ def test_feed_latency_10105_held_by_the_fine_terms_shift(monkeypatch):
     ``local_scale_defect?`` (half-width 4.33 mm, nothing beyond the smooth map), the targets 9.47 mm apart. Without
     the rule the extended workpiece is beyond its check (15.04 um against 3.12 + 9.51); with it both terms' shifts
     are real and carried and the check holds (U95 19.44). Tolerances 0.01 um: figures printed to that."""
+    # INSIDE_SMOOTH_REFUSED (on since session 36) refuses the bump here (nothing beyond the smooth map:
+    # tests/core/test_discover_inside_smooth.py); this test's subject is the fine terms' shift before it
+    monkeypatch.setattr(D, "INSIDE_SMOOTH_REFUSED", False)
     o0, o1 = _both(monkeypatch, "feed_latency", 10105)
     assert o1.findings == ("periodic_axis_error", "local_scale_defect") and not o1.confident
     assert o0.wp_ext_um > o0.wp_base_um + o0.wp_u95_um, o0
