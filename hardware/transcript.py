@@ -518,7 +518,8 @@ def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
                    t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
 
 
-def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke | None = None) -> ProbeLog:
+def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke | None = None,
+                      tool_offset_mm=None) -> ProbeLog:
     """Merge a GRBL transcript with its plan into a full ``probe-log/1``.
 
     One report per plan row, in order. A transcript with fewer reports is
@@ -534,13 +535,24 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
     line and the bound, unless it lies on the previous row's line (a touch repeated on a resume: the first
     report dropped, said in ``transcript_repeats``).
 
+    ``tool_offset_mm`` J (mm, session 36): the controller's machine coordinates were the spindle's (a real
+    GRBL's), the probe's tip centre J from them: every report is taken less J (the tip centre the plan and
+    the format mean) before it is matched to its row, and the log records J (``tool_offset_mm``). A J off
+    the reports' printing step is refused (:func:`hardware.campaign.tool_offset_step_problem`).
+
     Raises
     ------
     PlanError
         More probe reports than plan rows.
     ProbeLogError
         See :func:`read_transcript`; a report that is not its row's touch.
+    ConfigError
+        ``tool_offset_mm`` off the reports' printing step.
     """
+    from core.exceptions import ConfigError
+
+    from .campaign import TOOL_OFFSET_KEY, tool_offset_step_problem, tool_offset_text
+
     s = read_session(path, stopped_at_first=True)
     printed = report_decimals(s)
     k, n = len(s.pos_mm), plan.n
@@ -548,6 +560,21 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         _, why, _ = _stop(s, plan)
         raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
                             "nothing measured to import")
+    if tool_offset_mm is not None:
+        J = np.asarray(tool_offset_mm, dtype=float).reshape(3)
+        off_step = tool_offset_step_problem(J, printed)
+        if off_step:
+            raise ConfigError(f"--tool-offset-mm {tool_offset_text(J)}: {off_step} ({path}'s reports); nothing "
+                              "written")
+        # the spindle's machine position -> the tip centre's, rounded back to the step the reports were printed
+        # to (J is on it: the float subtraction's last bit only)
+        tip = s.pos_mm - J
+        for j, c in enumerate(("X_mm", "Y_mm", "Z_mm")):
+            if printed.get(c) is not None:
+                tip[:, j] = np.round(tip[:, j], printed[c])
+        from dataclasses import replace
+
+        s = replace(s, pos_mm=tip)
     try:
         aligned, repeats = _align(path, s, plan, stroke)
     except ProbeLogError:
@@ -566,6 +593,8 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         t = np.arange(k) * float(dt_s)
     status = ["ok" if x else "no_trigger" for x in touched]
     meta = {"machine": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
+    if tool_offset_mm is not None:   # the J taken off the reports: the readings are the tip centres
+        meta[TOOL_OFFSET_KEY] = tool_offset_text(tool_offset_mm)
     if repeats:
         meta["transcript_repeats"] = "; ".join(repeats)
     if k < n:
