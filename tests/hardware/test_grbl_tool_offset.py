@@ -359,3 +359,68 @@ def test_run_campaign_itself_refuses_a_resume_with_another_J(tmp_path):
                                         r"--tool-offset-mm 0.0,0.0,0.25"):
         run_campaign(Untouchable(), plan, out, ProbeSettings(limits_mm=lim, tool_offset_mm=(0, 0, 0.25)), resume=True)
     assert out.read_bytes() == before
+
+
+# ---------------------------------------------------------------------------------------------------------
+# the documented commands, as written, against our emulator
+
+
+def _doc_block():
+    """The three command lines of docs/formats.md's worked case (plan, serve, probe; comments cut)."""
+    text = (ROOT / "docs" / "formats.md").read_text()
+    block = text.split("Worked case, against vmt's own emulator", 1)[1].split("```bash\n", 1)[1].split("```")[0]
+    return [re.split(r"\s+#", ln)[0].strip() for ln in block.splitlines() if ln.startswith("vmt ")]
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_the_documented_worked_case_runs_against_our_emulator(tmp_path, monkeypatch, capsys):
+    """docs/formats.md, "GRBL transcript": the plan, ``vmt machine serve`` (a process, as a user starts it) and
+    ``vmt probe`` lines as written (the port picked free), then what the text says of them: the first touch sent
+    to machine Z 160 and answered [PRB:10.000,10.000,150.000:1], every reading the tip centre z = 0.000 under the
+    log's tool_offset_mm line, and the probe line without --tool-offset-mm refused by the limits, nothing moved."""
+    plan_cmd, serve_cmd, probe_cmd = _doc_block()
+    assert "--tool-offset-mm 0,0,150" in serve_cmd and "--tool-offset-mm 0,0,150" in probe_cmd
+    port = str(_free_port())
+    serve = [port if a == "5000" else a for a in shlex.split(serve_cmd)[1:]]
+    probe = [a.replace(":5000", f":{port}") for a in shlex.split(probe_cmd)[1:]] + ["--transcript", "session.txt"]
+    monkeypatch.chdir(tmp_path)
+    assert main(shlex.split(plan_cmd)[1:]) == 0
+    proc = subprocess.Popen([sys.executable, "-m", "scenarios.cli", *serve, "--stop-after-s", "120"], cwd=tmp_path,
+                            env={**__import__("os").environ, "PYTHONPATH": str(ROOT)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline()
+        assert f"on grbl://127.0.0.1:{port}, the probe's tip centre J = (0, 0, 150) mm" in first, \
+            first + proc.stderr.read()
+        assert main(probe) == 0
+        capsys.readouterr()
+        bare = [a for a in probe if a not in ("--tool-offset-mm", "0,0,150")]
+        bare[bare.index("--out") + 1] = "bare.csv"
+        assert main(bare) == 2
+        _one_line_refusal(capsys, "row 0 (target 'r0c0'): approach [10.0, 10.0, 10.0] mm is outside the soft "
+                                  "limits of Z [140.0, 260.0] mm")
+        assert not (tmp_path / "bare.csv").exists()
+    finally:
+        proc.terminate()
+        try:
+            proc.communicate(timeout=60)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.communicate()
+    text = (tmp_path / "log.csv").read_text()
+    assert "# tool_offset_mm: 0.0,0.0,150.0\n" in text
+    log = read_probe_log(tmp_path / "log.csv")
+    assert log.n == 6 and log.ok.all() and np.all(log.col("Z_mm") == 0.0)
+    rows = [ln for ln in text.splitlines() if not ln.startswith("#")]
+    assert rows[1].startswith("grid,r0c0,") and rows[1].split(",")[3:9] == ["10.000", "10.000", "0.000", "10.0",
+                                                                            "10.0", "0.0"]
+    session = (tmp_path / "session.txt").read_text().splitlines()
+    sent = [ln.split(" ", 2)[2] for ln in session]
+    k = sent.index("G53 G90 G1 X10.0000 Y10.0000 Z160.0000 F1000.0")
+    assert sent[k + 2] == "G91 G38.2 X0.0000 Y0.0000 Z-12.0000 F100.0"
+    assert "[PRB:10.000,10.000,150.000:1]" in sent[k + 3:k + 5]
