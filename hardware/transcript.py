@@ -471,12 +471,13 @@ _UNKNOWN_GRBL = ("its G38 move is not relative (G91) in the transcript: give vmt
                  "--clearance-mm and --overtravel-mm")
 
 
-def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
+def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None, offset_given: bool = False):
     """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`, along it
     within its probing move's stroke, else ``stroke``'s, else :data:`ALIGN_ALONG_MM`), a repeated touch's
     first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first report
     that is not its row's touch (``None`` instead, when ``s`` has more reports than the plan rows and the
-    count is the better refusal)."""
+    count is the better refusal). ``offset_given``: the reports were taken less a tool offset (the refusal then
+    does not suggest one)."""
     from dataclasses import replace
 
     pn, d = row_lines(plan)
@@ -512,7 +513,9 @@ def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
                 "to import the rows before it (the run stopped there)")
         raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} "
                             f"{off_row_words(p, plan, r, pn, d, st, _UNKNOWN_GRBL)}: "
-                            "not this plan's transcript, or its reports are one off")
+                            "not this plan's transcript, or its reports are one off"
+                            + ("" if offset_given else ", or its controller's machine coordinates are the spindle's "
+                               "(give the probe's --tool-offset-mm)"))
     k = np.array(keep, dtype=int)
     return replace(s, pos_mm=s.pos_mm[k].reshape(-1, 3), touched=s.touched[k],
                    t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
@@ -576,7 +579,7 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
 
         s = replace(s, pos_mm=tip)
     try:
-        aligned, repeats = _align(path, s, plan, stroke)
+        aligned, repeats = _align(path, s, plan, stroke, offset_given=tool_offset_mm is not None)
     except ProbeLogError:
         if k > n:       # more reports than rows and not this plan's touches: the count says it best
             aligned = None

@@ -208,7 +208,8 @@ def test_closed_loop_emulator_with_a_known_tool_length(tmp_path, capsys):
     # imported without J against the tip-centre plan: refused, naming a line, nothing written
     bad = tmp_path / "bad.csv"
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(bad)]) == 2
-    _one_line_refusal(capsys, "is not a touch of plan row 0")
+    _one_line_refusal(capsys, "is not a touch of plan row 0", "14.450 mm off its approach line, -150.125 mm along it",
+                      "or its controller's machine coordinates are the spindle's (give the probe's --tool-offset-mm)")
     assert not bad.exists()
     # and against the plan in the controller's coordinates: the log without the option, off by J
     imp2 = tmp_path / "imported-j.csv"
