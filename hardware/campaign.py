@@ -124,10 +124,13 @@ class ProbeSettings:
                 raise ConfigError(f"limits_mm {self.limits_mm!r}: expected ((xmin, xmax), "
                                   "(ymin, ymax), (zmin, zmax)) with min < max")
         if self.tool_offset_mm is not None:
-            J = tuple(self.tool_offset_mm)
-            if len(J) != 3 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in J):
+            try:
+                J = tuple(float(v) for v in self.tool_offset_mm)
+            except (TypeError, ValueError):
+                J = ()
+            if len(J) != 3 or not all(math.isfinite(v) for v in J):
                 raise ConfigError(f"tool_offset_mm {self.tool_offset_mm!r}: expected three finite numbers, mm")
-            object.__setattr__(self, "tool_offset_mm", tuple(float(v) for v in J))
+            object.__setattr__(self, "tool_offset_mm", J)
 
 
 def parse_limits(text: str) -> tuple:
@@ -207,8 +210,8 @@ def tool_offset_step_problem(J, decimals) -> str | None:
         q = 10.0 ** -int(d)
         if abs(v / q - round(v / q)) > 1e-6:
             return (f"its {a} {float(v) + 0.0!r} mm is not a multiple of the controller's printing step {q:g} mm "
-                    f"({int(d)} decimals): the readings (report - J) would carry digits the controller never printed; give J "
-                    f"to {int(d)} decimals")
+                    f"({int(d)} decimals): the readings (report - J) would carry digits the controller never "
+                    f"printed; give J to {int(d)} decimals")
     return None
 
 
