@@ -31,6 +31,17 @@ read at the start: 3), the plan's columns at the plan's steps, every other
 number exact (:func:`log_decimals`); rows are written so, a resumed log's
 by its own line.
 
+The probe's tool offset J (spindle gauge point minus stylus-tip centre, mm: a machine file's
+``[tool] offset_mm``, ``vmt identify --tool-offset-mm``; :attr:`ProbeSettings.tool_offset_mm`, session 36)
+is for a controller whose machine coordinates are its spindle's (a real GRBL: it moves with ``G53`` and
+reports ``[PRB:...]`` in machine coordinates, where no tool length offset enters). The plan's tip centres
+go out as ``tip + J`` (every approach start and probing end: the soft limits and the safe Z are the
+controller's machine coordinates), each report is logged as ``report - J`` (the tip centre the format
+means), and the log says so in its ``tool_offset_mm`` line (``X,Y,Z``, mm; absent: none applied, J = 0).
+A resume with another J is refused, nothing moved; a J off the controller's printing step (GRBL: 0.001
+mm) is refused before the first touch, since ``report - J`` would need digits the controller never
+printed.
+
 A resume also needs the machine frame the log was made in: a controller
 reset between the sessions (opening an Arduino GRBL's serial port resets it)
 sets its machine position to 0 where the machine stands. Before any motion
@@ -80,6 +91,11 @@ class ProbeSettings:
         (G38.2: the miss is logged, then the controller alarm stops the campaign).
     limits_mm : (3, 2) tuple or None
         Soft limits ``((xmin, xmax), (ymin, ymax), (zmin, zmax))``, machine frame, mm.
+    tool_offset_mm : (3,) tuple or None
+        The probe's offsets J, mm (spindle gauge point minus stylus-tip centre): the controller's machine
+        coordinates are the spindle's, so every point of the program is the plan's tip centre + J and every
+        report is logged less J (module docstring). None: none applied (the controller's machine
+        coordinates are the tip centre's, as the emulator's are by default).
     """
 
     probe_feed_mm_min: float = 100.0
@@ -90,6 +106,7 @@ class ProbeSettings:
     safe_z_mm: float | None = None
     allow_miss: bool = False
     limits_mm: tuple | None = None
+    tool_offset_mm: tuple | None = None
 
     def __post_init__(self):
         for k in ("probe_feed_mm_min", "move_feed_mm_min", "max_feed_mm_min",
@@ -106,6 +123,14 @@ class ProbeSettings:
             if lim.shape != (3, 2) or not np.all(np.isfinite(lim)) or np.any(lim[:, 0] >= lim[:, 1]):
                 raise ConfigError(f"limits_mm {self.limits_mm!r}: expected ((xmin, xmax), "
                                   "(ymin, ymax), (zmin, zmax)) with min < max")
+        if self.tool_offset_mm is not None:
+            try:
+                J = tuple(float(v) for v in self.tool_offset_mm)
+            except (TypeError, ValueError):
+                J = ()
+            if len(J) != 3 or not all(math.isfinite(v) for v in J):
+                raise ConfigError(f"tool_offset_mm {self.tool_offset_mm!r}: expected three finite numbers, mm")
+            object.__setattr__(self, "tool_offset_mm", J)
 
 
 def parse_limits(text: str) -> tuple:
@@ -128,6 +153,66 @@ def parse_limits(text: str) -> tuple:
     lim = tuple(out[a] for a in "XYZ")
     ProbeSettings(limits_mm=lim)
     return lim
+
+
+#: The metadata key of the tool offset J a campaign applied (``# tool_offset_mm: X,Y,Z``, mm; the positioning
+#: log's key of the same J, docs/formats.md). probe-log/1 lets a writer add metadata keys, and a reader that
+#: does not know one keeps it and ignores it: the readings stay the tip centres the format defines.
+TOOL_OFFSET_KEY = "tool_offset_mm"
+
+
+def parse_tool_offset(text: str, name: str = "--tool-offset-mm") -> tuple[float, float, float]:
+    """``"0,0,150"`` -> ``(0.0, 0.0, 150.0)``: the probe's offsets J, mm, three finite numbers each within
+    :data:`core.probelog.LENGTH_MAX_MM`; else a ConfigError naming the option ``name`` and the value."""
+    from core.probelog import LENGTH_MAX_MM
+
+    try:
+        v = tuple(float(x) for x in str(text).split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ConfigError(f"{name} {text!r}: expected X,Y,Z, three finite numbers, mm (the probe's offsets J: "
+                          "spindle gauge point minus stylus-tip centre)")
+    if max(abs(x) for x in v) > LENGTH_MAX_MM:
+        raise ConfigError(f"{name} {text!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
+    return v
+
+
+def tool_offset_text(J) -> str:
+    """J as the log's ``tool_offset_mm`` value: ``X,Y,Z``, each the shortest text of its double."""
+    return ",".join(repr(float(v) + 0.0) for v in J)
+
+
+def log_tool_offset(meta: dict, src) -> tuple[float, float, float]:
+    """The J a log says it was made with (its ``tool_offset_mm`` line); ``(0, 0, 0)`` without one (a log made
+    with none applied). ProbeLogError naming the file for a value that is not three finite numbers."""
+    v = meta.get(TOOL_OFFSET_KEY)
+    if v is None:
+        return (0.0, 0.0, 0.0)
+    try:
+        return parse_tool_offset(v, TOOL_OFFSET_KEY)
+    except ConfigError as e:
+        raise ProbeLogError(f"{src}: metadata {e}") from None
+
+
+def tool_offset_step_problem(J, decimals) -> str | None:
+    """Why ``report - J`` cannot be written to the controller's ``decimals`` (a component of J that is no
+    multiple of its step ``10^-decimals``), or None. A report is printed to that step; a J off it would put
+    digits in the reading the controller never printed (written to the step they would be cut).
+    ``decimals``: one count for X, Y, Z, or ``{"X_mm": 3, ...}`` per column (a column not named: exact)."""
+    if decimals is None or J is None:
+        return None
+    per = decimals if isinstance(decimals, dict) else {c: decimals for c in MEASURED_XYZ}
+    for a, v in zip("XYZ", J):
+        d = per.get(f"{a}_mm")
+        if d is None:
+            continue
+        q = 10.0 ** -int(d)
+        if abs(v / q - round(v / q)) > 1e-6:
+            return (f"its {a} {float(v) + 0.0!r} mm is not a multiple of the controller's printing step {q:g} mm "
+                    f"({int(d)} decimals): the readings (report - J) would carry digits the controller never "
+                    f"printed; give J to {int(d)} decimals")
+    return None
 
 
 @dataclass(frozen=True)
@@ -155,9 +240,12 @@ def check_plan(plan: ProbeLog) -> None:
 
 
 def plan_steps(plan: ProbeLog, settings: ProbeSettings) -> list[Step]:
-    """One :class:`Step` per plan row, in plan order."""
+    """One :class:`Step` per plan row, in plan order, in the controller's machine coordinates: the plan's tip
+    centres + the settings' ``tool_offset_mm`` J when given."""
     check_plan(plan)
     pn = plan.nominals_mm()
+    if settings.tool_offset_mm is not None:
+        pn = pn + np.asarray(settings.tool_offset_mm, dtype=float)
     d = np.column_stack([plan.col(c) for c in ("dx", "dy", "dz")])
     rot = np.column_stack([plan.col(c) for c in ("A_deg", "B_deg", "C_deg")])
     rot = np.where(np.isnan(rot), 0.0, rot)
@@ -744,6 +832,14 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         last_t = rec.last_t_s
         temps = [c[5:-2] for c in columns if c.startswith("temp_") and c.endswith("_C")]
         decimals = rec.decimals
+        try:    # one log, one J: its readings are the reports less the J it was begun with
+            problem = resume_offset_problem(p, rec.meta, settings.tool_offset_mm)
+        except BaseException:
+            os.close(fd)
+            raise
+        if problem:
+            os.close(fd)
+            raise PlanError(problem)
     else:
         done, last_t, started = 0, 0.0, None
     statuses: dict[str, int] = {}
@@ -792,9 +888,15 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                      "plan": plan_path or plan.source, "started_unix": repr(started),
                      "probe_feed_mm_min": settings.probe_feed_mm_min,
                      "clearance_mm": settings.clearance_mm, "overtravel_mm": settings.overtravel_mm})
+        if settings.tool_offset_mm is not None:   # the J applied: the readings are the reports less it
+            meta[TOOL_OFFSET_KEY] = tool_offset_text(settings.tool_offset_mm)
         # the controller's printing step on X, Y, Z (GRBL: its status report's decimals, as its [PRB:...] prints
         # them), the plan's on its columns, every other number exact: said in the log (session 33)
         decimals = log_decimals(plan, columns, getattr(backend, "report_decimals", None))
+        off_step = tool_offset_step_problem(settings.tool_offset_mm, decimals.get("X_mm"))
+        if off_step:     # before the log exists and before the first move (a $H the user asked for aside)
+            raise ConfigError(f"--tool-offset-mm {tool_offset_text(settings.tool_offset_mm)}: {off_step}; "
+                              "nothing probed, no log written")
         meta[NUMBER_FORMAT_KEY] = number_format_value(decimals)
         log = AppendLog.create(p, columns, meta, decimals)
     else:
@@ -827,6 +929,10 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
                         f"{printed} decimals, but the log declares X_mm, Y_mm, Z_mm printed to {want} "
                         f"({NUMBER_FORMAT_KEY}, from the controller's status report when the log began): not "
                         "logged, the log kept; a controller that prints another step needs a new log")
+                if settings.tool_offset_mm is not None:   # the spindle's position -> the tip centre's
+                    x = x - np.asarray(settings.tool_offset_mm, dtype=float)
+                    if want is not None:   # J on the step (checked at the start): the float subtraction's last bit
+                        x = np.round(x, int(want))
                 row.update({"X_mm": x[0], "Y_mm": x[1], "Z_mm": x[2], "t_s": t})
                 last_t = t
             else:          # probe-log/1: the measured cells of an invalid touch stay empty
@@ -859,6 +965,37 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
     finally:
         log.close()
     return CampaignResult(p, plan.n, before, done, torn, statuses)
+
+
+def head_meta(path) -> dict:
+    """The metadata lines (``# key: value``, first value of a key) at the head of a log, read without
+    parsing its rows: what a resume is checked against before the program is (:func:`resume_offset_problem`)."""
+    meta = {}
+    with open(path, "rb") as f:
+        for raw in f:
+            line = raw.decode("utf-8", errors="replace").lstrip("\ufeff").rstrip("\r\n")
+            if not line.strip():
+                continue
+            if not line.startswith("#"):
+                break
+            k, colon, v = line[1:].partition(":")
+            if colon:
+                meta.setdefault(k.strip(), v.strip())
+    return meta
+
+
+def resume_offset_problem(path, meta: dict, J) -> str | None:
+    """Why a log begun with one tool offset J (its ``tool_offset_mm`` line; none: 0) cannot be resumed with
+    ``J`` (None: none applied), or None when they are the same J."""
+    was = log_tool_offset(meta, path)
+    now = (0.0, 0.0, 0.0) if J is None else tuple(float(v) for v in J)
+    if all(a == b for a, b in zip(was, now)):
+        return None
+    said = (f"--tool-offset-mm {tool_offset_text(now)}" if J is not None else "no --tool-offset-mm (J = 0)")
+    began = (f"its {TOOL_OFFSET_KEY} line says J = {tool_offset_text(was)} mm" if TOOL_OFFSET_KEY in meta
+             else "it has no tool_offset_mm line: begun with none applied (J = 0)")
+    return (f"{path}: not resumed, nothing moved, the log kept: {began}, the resume gives {said}: one log holds "
+            "one J (its readings are the reports less J); resume with the log's J, or start a new log")
 
 
 def log_from_plan(plan: ProbeLog, pos_mm, status, t_s, meta: dict | None = None,

@@ -69,6 +69,13 @@ chords of at most ``$12``; extra axes beyond X, Y, Z follow grblHAL: their
 words are accepted, reported in ``MPos``/``[PRB]``/``$#``, numbered ``$103``,
 ``$113``... in ``$$``, and named in ``$I`` by ``[AXS:n:letters]``.
 
+The probe's length (session 36): ``tool_offset_mm`` J (spindle gauge point minus stylus-tip centre, as
+a machine file's ``[tool] offset_mm``) makes the machine position the spindle's, as on a real GRBL
+machine: the stylus-tip centre the virtual machine reads stands at ``machine position - J`` (the
+firmware knows nothing of it; ``G43.1`` still shifts only the work coordinates). J = 0 (the default):
+the machine position is the tip centre's, as before. ``vmt probe --tool-offset-mm J`` against it logs
+the tip centres the direct simulation logs.
+
 The virtual machine is duck-typed, one method (``sim.probe.VirtualMachine``
 through ``hardware.virtual`` or :class:`hardware.scene.SimpleScene`)::
 
@@ -340,10 +347,18 @@ class GrblEmulator:
     faults : Faults
     start_in_alarm : bool or None
         Power on in alarm; default: when homing is enabled, as GRBL does.
+    tool_offset_mm : (3,) float or None
+        The probe's offsets J, mm: the tip centre the machine model reads is the machine position - J
+        (module docstring). None: (0, 0, 0), the machine position is the tip centre's.
     """
 
     def __init__(self, machine, config: ControllerConfig | None = None, *, faults: Faults | None = None,
-                 start_in_alarm: bool | None = None):
+                 start_in_alarm: bool | None = None, tool_offset_mm=None):
+        from core.exceptions import ConfigError
+
+        J = np.zeros(3) if tool_offset_mm is None else np.asarray(tool_offset_mm, dtype=float).reshape(-1)
+        if J.shape != (3,) or not np.all(np.isfinite(J)):
+            raise ConfigError(f"tool offset {tool_offset_mm!r}: expected three finite numbers X,Y,Z, mm")
         self.machine = machine
         self.config = config or ControllerConfig()
         self.faults = faults or Faults()
@@ -360,6 +375,9 @@ class GrblEmulator:
         #: physically stands at ``pos + frame_mm``. 0 until a power-up reset (:meth:`power_cycle`) sets
         #: the position to 0 where the machine stands; ``$H`` finds the switches and sets it back to 0.
         self.frame_mm = np.zeros(self.n)
+        #: The probe's offsets J (mm): the tip centre the machine model reads stands at machine position + the
+        #: frame - J (:meth:`_model_xyz`); a reset or ``$H`` does not change it (the probe is what it is).
+        self.tool_offset_mm = J
         self.probes = 0            # probing moves received
         self.touches: list = []    # (triggered, pos_mm (3,)) of every executed probing move
         self.alarm: int | None = None
@@ -1011,11 +1029,15 @@ class GrblEmulator:
                 abc["ABC".index(a)] = math.radians(p[i])
         return abc
 
+    def _model_xyz(self, p) -> np.ndarray:
+        """The tip centre (mm, the machine model's frame) at machine position ``p``: ``p + frame - J``."""
+        return np.asarray(p, float)[:3] + self.frame_mm[:3] - self.tool_offset_mm
+
     def _contact_now(self, p) -> bool:
         f = getattr(self.machine, "in_contact", None)
         if callable(f):
             q = np.asarray(p, float) + self.frame_mm
-            return bool(f(q[:3] * 1e-3, self._abc_rad(q)))
+            return bool(f(self._model_xyz(p) * 1e-3, self._abc_rad(q)))
         return self._contact and self._active is None
 
     def _probe_pin(self, p=None) -> bool:
@@ -1635,7 +1657,9 @@ class GrblEmulator:
         """Where along the move the pin changes: ``(s, report position)``, ``(None, None)``
         for a miss, ``("initial", None)`` when the pin is wrong at the start (ALARM:4)."""
         fr = self.frame_mm            # the machine model's frame: where the machine physically is
-        s_m, t_m = (start[:3] + fr[:3]) * 1e-3, (target[:3] + fr[:3]) * 1e-3
+        # the tip centre, J from the machine position (the spindle's); a trigger found there goes back by + J
+        s_m, t_m = self._model_xyz(start) * 1e-3, self._model_xyz(target) * 1e-3
+        back = fr[:3] - self.tool_offset_mm          # machine position = tip centre - back
         rot = self._abc_rad(start + fr)
         d = target - start
         L = float(np.linalg.norm(d))
@@ -1646,7 +1670,7 @@ class GrblEmulator:
             if has_contact and self._contact_now(start):
                 return "initial", None
             trig, p_m = self.machine.probe_move(s_m, t_m, rot)
-            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - fr[:3]
+            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - back
             if bool(trig) and np.allclose(p, start[:3], rtol=0, atol=1e-9):
                 return "initial", None
             if not trig:
@@ -1658,7 +1682,7 @@ class GrblEmulator:
             if not c0:
                 return "initial", None
             trig, p_m = self.machine.probe_move(t_m, s_m, rot)    # the exit, seen from the end
-            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - fr[:3]
+            p = np.asarray(p_m, dtype=float).reshape(3) * 1e3 - back
             if trig and np.allclose(p, target[:3], rtol=0, atol=1e-9):
                 return None, None                                   # never leaves the material
             if not trig:

@@ -41,7 +41,12 @@ conversion would hide which one a log was made with.
 
 Motion: positioning is ``G53 G90 G1`` (machine coordinates, a feed move so
 the maximum feed holds); probing is ``G91 G38.2`` by an increment from where
-the machine stands, so work offsets never enter.
+the machine stands, so work offsets never enter, nor GRBL's tool length
+offset (``G43.1`` shifts the work coordinates only). The probe's length is
+vmt's own: :class:`hardware.campaign.ProbeSettings` ``tool_offset_mm`` J
+shifts every target this backend is given by + J and every report it
+returns is logged - J (``vmt probe --tool-offset-mm``, session 36); the
+backend itself speaks the controller's machine coordinates only.
 """
 
 from __future__ import annotations

@@ -471,12 +471,13 @@ _UNKNOWN_GRBL = ("its G38 move is not relative (G91) in the transcript: give vmt
                  "--clearance-mm and --overtravel-mm")
 
 
-def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
+def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None, offset_given: bool = False):
     """The session with each report on its plan row's approach line (:data:`ALIGN_LATERAL_MM`, along it
     within its probing move's stroke, else ``stroke``'s, else :data:`ALIGN_ALONG_MM`), a repeated touch's
     first report dropped; and the notes of what was dropped. Raises ProbeLogError naming the first report
     that is not its row's touch (``None`` instead, when ``s`` has more reports than the plan rows and the
-    count is the better refusal)."""
+    count is the better refusal). ``offset_given``: the reports were taken less a tool offset (the refusal then
+    does not suggest one)."""
     from dataclasses import replace
 
     pn, d = row_lines(plan)
@@ -512,13 +513,16 @@ def _align(path, s: "Session", plan: ProbeLog, stroke: "Stroke | None" = None):
                 "to import the rows before it (the run stopped there)")
         raise ProbeLogError(f"{path}: line {s.lines[j]}: report {j + 1} "
                             f"{off_row_words(p, plan, r, pn, d, st, _UNKNOWN_GRBL)}: "
-                            "not this plan's transcript, or its reports are one off")
+                            "not this plan's transcript, or its reports are one off"
+                            + ("" if offset_given else ", or its controller's machine coordinates are the spindle's "
+                               "(give the probe's --tool-offset-mm)"))
     k = np.array(keep, dtype=int)
     return replace(s, pos_mm=s.pos_mm[k].reshape(-1, 3), touched=s.touched[k],
                    t_s=None if s.t_s is None else s.t_s[k], lines=[s.lines[i] for i in keep]), notes
 
 
-def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke | None = None) -> ProbeLog:
+def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke | None = None,
+                      tool_offset_mm=None) -> ProbeLog:
     """Merge a GRBL transcript with its plan into a full ``probe-log/1``.
 
     One report per plan row, in order. A transcript with fewer reports is
@@ -534,13 +538,24 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
     line and the bound, unless it lies on the previous row's line (a touch repeated on a resume: the first
     report dropped, said in ``transcript_repeats``).
 
+    ``tool_offset_mm`` J (mm, session 36): the controller's machine coordinates were the spindle's (a real
+    GRBL's), the probe's tip centre J from them: every report is taken less J (the tip centre the plan and
+    the format mean) before it is matched to its row, and the log records J (``tool_offset_mm``). A J off
+    the reports' printing step is refused (:func:`hardware.campaign.tool_offset_step_problem`).
+
     Raises
     ------
     PlanError
         More probe reports than plan rows.
     ProbeLogError
         See :func:`read_transcript`; a report that is not its row's touch.
+    ConfigError
+        ``tool_offset_mm`` off the reports' printing step.
     """
+    from core.exceptions import ConfigError
+
+    from .campaign import TOOL_OFFSET_KEY, tool_offset_step_problem, tool_offset_text
+
     s = read_session(path, stopped_at_first=True)
     printed = report_decimals(s)
     k, n = len(s.pos_mm), plan.n
@@ -548,8 +563,23 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         _, why, _ = _stop(s, plan)
         raise ProbeLogError(f"{path}: no probe reports ([PRB:...]): the run stopped at its first touch, {why}; "
                             "nothing measured to import")
+    if tool_offset_mm is not None:
+        J = np.asarray(tool_offset_mm, dtype=float).reshape(3)
+        off_step = tool_offset_step_problem(J, printed)
+        if off_step:
+            raise ConfigError(f"--tool-offset-mm {tool_offset_text(J)}: {off_step} ({path}'s reports); nothing "
+                              "written")
+        # the spindle's machine position -> the tip centre's, rounded back to the step the reports were printed
+        # to (J is on it: the float subtraction's last bit only)
+        tip = s.pos_mm - J
+        for j, c in enumerate(("X_mm", "Y_mm", "Z_mm")):
+            if printed.get(c) is not None:
+                tip[:, j] = np.round(tip[:, j], printed[c])
+        from dataclasses import replace
+
+        s = replace(s, pos_mm=tip)
     try:
-        aligned, repeats = _align(path, s, plan, stroke)
+        aligned, repeats = _align(path, s, plan, stroke, offset_given=tool_offset_mm is not None)
     except ProbeLogError:
         if k > n:       # more reports than rows and not this plan's touches: the count says it best
             aligned = None
@@ -566,6 +596,8 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
         t = np.arange(k) * float(dt_s)
     status = ["ok" if x else "no_trigger" for x in touched]
     meta = {"machine": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
+    if tool_offset_mm is not None:   # the J taken off the reports: the readings are the tip centres
+        meta[TOOL_OFFSET_KEY] = tool_offset_text(tool_offset_mm)
     if repeats:
         meta["transcript_repeats"] = "; ".join(repeats)
     if k < n:

@@ -1,4 +1,5 @@
-"""``vmt import linuxcnc|grbl FILE [--plan PLAN.csv] --out LOG.csv``: a controller's log to probe-log/1."""
+"""``vmt import linuxcnc|grbl FILE [--plan PLAN.csv] --out LOG.csv [--tool-offset-mm X,Y,Z]``: a controller's log to
+probe-log/1 (``--tool-offset-mm``: grbl only, the probe's J taken off every report)."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ def register(sub) -> None:
                    help="linuxcnc: the LOGOPEN file of a vmt machine program run (N<row> G1 X.. Y.. Z.. lines), "
                         "a PROBEOPEN file (3 or 9 numbers a line) or another LOGOPEN file "
                         "(G1 X.. Y.. Z.. lines); grbl: a session transcript (its [PRB] machine positions are "
-                        "logged as they are: the stylus-tip centre's only if the controller's machine coordinates "
-                        "are; docs/formats.md, 'GRBL transcript')")
+                        "logged less --tool-offset-mm, as they are without it: the stylus-tip centre's only if the "
+                        "controller's machine coordinates are; docs/formats.md, 'GRBL transcript')")
     p.add_argument("file", help="the probe file or transcript")
     p.add_argument("--plan", help="the probe-log/1 plan that was run; without it (linuxcnc) the file "
                    "is a surface probed along Z and the plan is built from it (points that are not a grid's "
@@ -23,6 +24,11 @@ def register(sub) -> None:
     p.add_argument("--units", choices=("mm", "inch"), default=None,
                    help="units of a LinuxCNC probe file (mm); not for grbl, whose reports are read as mm "
                         "(a transcript showing $13=1, report inches, is refused)")
+    p.add_argument("--tool-offset-mm", default=None, metavar="X,Y,Z",
+                   help="grbl: the probe's offsets J the transcript's run was made with, mm (spindle gauge point minus "
+                        "stylus-tip centre, as vmt probe --tool-offset-mm and a machine file's [tool] offset_mm): "
+                        "every [PRB] report is logged less J, the tip centre the plan means, and the log records J "
+                        "(tool_offset_mm). Not for linuxcnc, which applies its tool table's offset itself (G43)")
     p.add_argument("--clearance-mm", dest="clearance", type=float, default=None,
                    help="the program's approach start before contact (vmt machine program / vmt probe "
                         "--clearance-mm), mm (2 when only --overtravel-mm is given): each touch within clearance + "
@@ -43,6 +49,15 @@ def run(args) -> int:
     from hardware.transcript import program_stroke
 
     stroke = program_stroke(args.clearance, args.overtravel)
+    J = None
+    if args.tool_offset_mm is not None:     # before reading anything
+        if args.kind != "grbl":
+            raise ConfigError("import linuxcnc: --tool-offset-mm is for grbl transcripts; LinuxCNC applies the "
+                              "probe's tool length offset itself (its tool table, G43), so its probe file already "
+                              "holds the tip centres")
+        from hardware.campaign import parse_tool_offset
+
+        J = parse_tool_offset(args.tool_offset_mm)
     plan = read_probe(args.plan, "import") if args.plan else None
     if args.kind == "linuxcnc":
         from hardware.linuxcnc import import_probe_file
@@ -62,14 +77,15 @@ def run(args) -> int:
             raise ConfigError("import grbl: --units is for LinuxCNC probe files; a GRBL transcript's reports are "
                               "read as mm (GRBL's $13=0): inch reports are not converted")
 
-        log = import_transcript(args.file, plan, dt_s=args.dt, stroke=stroke)
+        log = import_transcript(args.file, plan, dt_s=args.dt, stroke=stroke, tool_offset_mm=J)
     write_probe_log(args.out, log, special=True)
     ok = int(log.ok.sum())
     from scenarios.cli.guard import said
 
     from core.exceptions import counted
 
-    print(f"{said(args.out)}: {counted(log.n, 'touch')} ({ok} ok) from {args.kind} {args.file}")
+    print(f"{said(args.out)}: {counted(log.n, 'touch')} ({ok} ok) from {args.kind} {args.file}"
+          + ("" if J is None else f", each report less the tool offset J = ({', '.join(f'{v:g}' for v in J)}) mm"))
     if "probe_file_rows" in log.meta:
         print(f"note: the probe file has {log.meta['probe_file_rows']}")
     if "transcript_repeats" in log.meta:

@@ -2,6 +2,7 @@
 
     vmt machine show NAME|FILE [--errors realistic|none]
     vmt machine serve --port N [--host 127.0.0.1] [--pty] [--scene ARTEFACT [--machine NAME|FILE] [--errors SET]]
+                      [--tool-offset-mm X,Y,Z]
     vmt machine program --plan PLAN.csv --out PROBE.ngc (--limits-mm ... | --machine NAME|FILE)
 """
 
@@ -48,6 +49,11 @@ def register(sub) -> None:
     s.add_argument("--axes", help="the controller's axes (default: the machine's, e.g. XYZAC for the nmv3000)")
     option(s, "--home-mm", dest="home", default="0,0,50", metavar="X,Y,Z", old=("--home",),
            help="power-on / $H position, machine frame, mm (0,0,50)")
+    s.add_argument("--tool-offset-mm", default=None, metavar="X,Y,Z",
+                   help="the probe's offsets J, mm (spindle gauge point minus stylus-tip centre, as a machine file's "
+                        "[tool] offset_mm): the machine position is then the spindle's, the tip centre J from it, as "
+                        "on a real GRBL machine (probe it with vmt probe --tool-offset-mm J). Default none: the "
+                        "machine position is the tip centre's")
     s.add_argument("--time-scale", type=float, default=1.0,
                    help="emulated time per second of wall clock (1: a machine's pace; 10: ten times faster)")
     option(s, "--idle-timeout-s", dest="idle_timeout", type=float, default=300.0, old=("--idle-timeout",),
@@ -125,11 +131,14 @@ def run_serve(args) -> int:
     for opt, v in (("--idle-timeout-s", args.idle_timeout), ("--stop-after-s", args.max_seconds)):
         if v is not None and not v > 0:
             raise ConfigError(f"{opt} must be > 0, got {v:g}")
+    from hardware.campaign import parse_tool_offset
+
+    J = None if args.tool_offset_mm is None else parse_tool_offset(args.tool_offset_mm)   # before any work
     machine = served_machine(args)
     axes = args.axes or "XYZ" + "".join(a for a in "ABC" if a in getattr(machine, "rotary_axes", ()))
     config = ControllerConfig(axes=axes, home=parse_floats3(args.home, "--home-mm"), homing=args.homing,
                               travel=parse_limits(args.limits) if args.limits else None)
-    emu = GrblEmulator(machine, config)
+    emu = GrblEmulator(machine, config, tool_offset_mm=J)
     runner = EmulatorRunner(emu, time_scale=args.time_scale)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"vmt machine: warning: listening on {args.host}, not only this computer",
@@ -140,7 +149,9 @@ def run_serve(args) -> int:
     except OSError as e:
         raise ConfigError(f"--host {args.host} --port {args.port}: cannot listen ({e.strerror})") from None
     ptys = PtyServer(runner).start() if args.pty else None
-    print(f"vmt machine: GRBL emulator of axes {axes} on {tcp.url}", flush=True)
+    print(f"vmt machine: GRBL emulator of axes {axes} on {tcp.url}"
+          + ("" if J is None else f", the probe's tip centre J = ({', '.join(f'{v:g}' for v in J)}) mm from the "
+                                  "machine position"), flush=True)
     if ptys is not None:
         print(f"vmt machine: serial port {ptys.path} ({ptys.url})", flush=True)
     end = None if args.max_seconds is None else time.monotonic() + args.max_seconds

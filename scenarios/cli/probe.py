@@ -1,7 +1,7 @@
 """``vmt probe``: run a probing plan on a machine, append-only and resumable.
 
     vmt probe --controller grbl://HOST:PORT|serial:///dev/ttyX|virtual: --plan PLAN.csv
-              --out LOG.csv --limits-mm X0:300,Y0:200,Z-100:0 [--dry-run] [--resume]
+              --out LOG.csv --limits-mm X0:300,Y0:200,Z-100:0 [--tool-offset-mm X,Y,Z] [--dry-run] [--resume]
 
 Before any motion the program is checked against the soft limits and the
 maximum feed; ``--dry-run`` only prints it. Every touch is on disk (fsync)
@@ -21,11 +21,19 @@ def register(sub) -> None:
     option(p, "--controller", metavar="URL", required=True, old=("--machine",),
                    help="grbl://HOST:PORT, serial:///dev/ttyX[?baud=115200], virtual: (built-in scene) "
                         "or virtual:cross-pocket (the simulator's nmv3000 and part). GRBL: the plan goes out as G53 "
-                        "targets and the log holds the [PRB] machine positions, with no tool length offset: the "
-                        "stylus-tip centre's only if the controller's machine coordinates are (the emulator's are; "
-                        "a real machine's are the spindle's, J from the tip: docs/formats.md, 'GRBL transcript')")
+                        "targets and the log holds the [PRB] machine positions, each + and - the --tool-offset-mm J "
+                        "when given (a real machine's machine coordinates are the spindle's, J from the tip; the "
+                        "emulator's are the tip's unless served with --tool-offset-mm: docs/formats.md, 'GRBL "
+                        "transcript')")
     p.add_argument("--out", required=True, help="campaign log (probe-log/1), append-only")
     add_settings_args(p)
+    p.add_argument("--tool-offset-mm", default=None, metavar="X,Y,Z",
+                   help="the probe's offsets J, mm (spindle gauge point minus stylus-tip centre, as a machine file's "
+                        "[tool] offset_mm and vmt identify --tool-offset-mm), for a GRBL controller whose machine "
+                        "coordinates are the spindle's: the plan's tip centres go out as tip + J (--limits-mm and "
+                        "--safe-z-mm are then the controller's machine coordinates, the spindle's), each [PRB] report "
+                        "is logged less J, and the log records J (tool_offset_mm); a --resume must give the same J. "
+                        "Not for virtual: (its positions are the tip centre's)")
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
     p.add_argument("--resume", action="store_true", help="continue the log --out where it stops (refused, nothing moved, when the "
                         "controller lost the log's machine position: then add --home-cycle)")
@@ -52,7 +60,8 @@ def run(args) -> int:
     from hardware.campaign import check_program, plan_steps, plan_turns
 
     plan = read_probe(args.plan, "probe")
-    settings = settings_from_args(args)
+    settings = _with_tool_offset(settings_from_args(args), args)
+    _check_resumed_offset(settings, args)
     steps = plan_steps(plan, settings)
     if args.dry_run:
         return _dry_run(steps, settings, args)
@@ -70,6 +79,44 @@ def run(args) -> int:
     print(f"{args.out}: {res.rows_done} of {counted(res.rows_total, 'touch')} "
           f"({new} new, {res.rows_before} before{extra}; the new ones: {st})")
     return 0
+
+
+def _with_tool_offset(settings, args):
+    """``settings`` with ``--tool-offset-mm`` J (checked: three finite numbers, mm; refused on ``virtual:``)."""
+    if args.tool_offset_mm is None:
+        return settings
+    from dataclasses import replace
+
+    from core.exceptions import ConfigError
+    from hardware.campaign import parse_tool_offset
+
+    J = parse_tool_offset(args.tool_offset_mm)
+    if args.controller.startswith("virtual"):
+        raise ConfigError(f"--tool-offset-mm {args.tool_offset_mm}: the in-process virtual machine "
+                          f"({args.controller}) moves its stylus-tip centre, it has no spindle J from it; a GRBL "
+                          "controller whose machine coordinates are the spindle's takes it (the emulator: vmt "
+                          "machine serve --tool-offset-mm)")
+    return replace(settings, tool_offset_mm=J)
+
+
+def _check_resumed_offset(settings, args) -> None:
+    """PlanError for a ``--resume`` whose J is not the one its log was begun with (its ``tool_offset_mm`` line),
+    before the program is checked: with another J every point moves, and the limits would refuse it first
+    without saying why (``run_campaign`` checks it again on the log it locks)."""
+    from pathlib import Path
+
+    from core.exceptions import PlanError
+    from hardware.campaign import head_meta, resume_offset_problem
+
+    if not (args.resume and not args.dry_run and Path(args.out).is_file()):
+        return
+    try:
+        meta = head_meta(args.out)
+    except OSError:
+        return            # run_campaign says what is wrong with the file
+    problem = resume_offset_problem(args.out, meta, settings.tool_offset_mm)
+    if problem:
+        raise PlanError(problem)
 
 
 def _dry_run(steps, settings, args) -> int:
