@@ -91,10 +91,10 @@ def test_a_fixed_parameter_and_an_undetermined_phase_are_said_so():
     assert f == ["finding    thermal_drift: x_offset_change_um 2.34 +- 0.5, over_h 0.924 h (fixed) (value +- U95, k = 2)",
                  "finding    periodic_axis_error: axis X, EXX_phase_rad 0.0463 +- 0.19, EYX_phase_rad n/d (U95 reaches "
                  "half the circle) (value +- U95, k = 2)"]
-    assert _magnitude_rows(rep, "planar") == [
+    assert _magnitude_rows(rep, "planar") == [r + [""] for r in [   # (the fifth column: a note, none here)
         ["thermal_drift", "x_offset_change_um", 2.34, 0.5], ["thermal_drift", "over_h", "0.924 h", "fixed"],
         ["periodic_axis_error", "axis", "X", None], ["periodic_axis_error", "EXX_phase_rad", 0.0463, 0.19],
-        ["periodic_axis_error", "EYX_phase_rad", "n/d", "reaches half the circle"]]
+        ["periodic_axis_error", "EYX_phase_rad", "n/d", "reaches half the circle"]]]
 
 
 def test_an_iso230_2_test_says_deviation_not_workpiece():

@@ -1,0 +1,154 @@
+"""Session 36 (left36): the discovery report page says what it draws and what its figures are.
+
+- A positioning log without a clock (no ``t_s`` column, or one with an empty cell): the engine takes the reading
+  order for the time (core.baseline.positioning), and the page labelled it "t / s" and "time / s". Now every figure
+  and table of the page names it the reading order, and a magnitude in s or h is noted as counting readings.
+- The "Fitted magnitudes" table: a one-sided magnitude (``evidence.one_sided``) showed "–" where the summary
+  printed ``time_constant_s >= 120 (not determined)``; a local defect's ``centre_mm`` showed without its frame or
+  the images of it the design cannot tell from it (``evidence.centre_images``, cat35).
+
+Checked against what the engine did not produce: the log's own rows (the reading order is 0..n-1 over them) and
+reports written by hand.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from scenarios.positioning_sample import SAMPLE
+
+
+def _without_clock(path, holes: bool):
+    """The sample with its t_s column dropped (``holes`` False) or with one t_s cell emptied (True)."""
+    out = []
+    for ln in SAMPLE.read_text().splitlines():
+        if ln.startswith("#"):
+            out.append(ln)
+            continue
+        c = ln.split(",")
+        if c[0] == "target_mm":
+            k = c.index("t_s")
+        elif holes and len(out) == 12:      # one reading's clock left empty
+            c[k] = ""
+        if not holes:
+            del c[k]
+        out.append(",".join(c))
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+@functools.lru_cache(maxsize=None)
+def _sections(holes: bool):
+    import tempfile
+    from pathlib import Path
+
+    from core.baseline import positioning_from_log
+    from core.discover import discover_baseline
+    from core.positioning import read_positioning_log
+    from scenarios.reports import _positioning_sections
+
+    with tempfile.TemporaryDirectory() as tmp:
+        log = read_positioning_log(_without_clock(Path(tmp) / "p.csv", holes))
+    d = discover_baseline(positioning_from_log(log))
+    rep = d.to_report()
+    return d, rep, {s.title: s for s in _positioning_sections(d, rep)}, log
+
+
+@pytest.mark.parametrize("holes", [False, True], ids=["no t_s column", "a t_s cell empty"])
+def test_a_positioning_page_without_a_clock_says_reading_order(holes):
+    """Fails before: the residual figures' first axis read "t / s" and the time panel "time / s" over the indices
+    0..n-1; the diagnosis table said "time" with nothing to say it was the order."""
+    from scenarios.reports import NO_CLOCK_NOTE, READING_ORDER_LABEL, positioning_clock
+
+    d, rep, secs, log = _sections(holes)
+    assert not positioning_clock(d.baseline)
+    n = int(np.sum(log.status == "ok")) if log.status is not None else log.n
+    assert d.baseline.n == n
+    for name in ("residuals_baseline", "residuals_extended"):
+        fig = next(s.figures[name] for s in secs.values() if name in s.figures)
+        ax = fig.axes[0]
+        assert ax.get_xlabel() == READING_ORDER_LABEL
+        xs = np.concatenate([ln.get_xdata() for ln in ax.get_lines() if ln.get_label().startswith("approach")])
+        assert np.array_equal(np.sort(xs), np.arange(len(xs), dtype=float))  # the order, not seconds
+    fig = secs["Diagnosis: where the structure lives"].figures["diagnosis"]
+    labels = {ax.get_title().replace("\n", " "): ax.get_xlabel() for ax in fig.axes if ax.get_visible()}
+    time_panel = next(g["text"] for g in rep["diagnosis"] if g["covariate"] == "time")
+    assert labels[time_panel] == READING_ORDER_LABEL and " / s" not in "".join(labels.values())
+    rows = secs["Diagnosis: where the structure lives"].tables[0].rows
+    assert {r[0] for r in rows} >= {"time (time = the reading order here)",
+                                    "time_by_direction (time = the reading order here)", "order"}
+    for title in ("Discovery: verdict", "Diagnosis: where the structure lives"):
+        assert NO_CLOCK_NOTE in secs[title].text
+    assert "against the reading order" in secs["Baseline residuals: what the model gets wrong"].text
+    mags = secs["Fitted magnitudes"].tables[0].rows
+    assert rep["cause"] == "warm_up"
+    tc = next(r for r in mags if r[1] == "time_constant_s")
+    assert tc[4].startswith("in readings, not seconds")
+    assert all(r[4] == "" for r in mags if r[1] != "time_constant_s")
+
+
+def test_a_positioning_page_with_a_clock_says_seconds():
+    """The sample as shipped (its t_s column): time in s, no note (the other side of the test above)."""
+    from core.baseline import positioning_from_log
+    from core.discover import discover_baseline
+    from core.positioning import read_positioning_log
+    from scenarios.reports import NO_CLOCK_NOTE, _positioning_sections, positioning_clock
+
+    d = discover_baseline(positioning_from_log(read_positioning_log(SAMPLE)))
+    assert positioning_clock(d.baseline)
+    secs = _positioning_sections(d, d.to_report())
+    assert not any(NO_CLOCK_NOTE in s.text for s in secs)
+    res = next(s.figures["residuals_baseline"] for s in secs if "residuals_baseline" in s.figures)
+    assert res.axes[0].get_xlabel() == "t / s"
+    assert all(r[4] == "" for s in secs if s.title == "Fitted magnitudes" for r in s.tables[0].rows)
+
+
+def _finding(cause, params, u95, evidence):
+    return {"findings": [{"cause": cause, "params": params, "params_u95": u95, "evidence": evidence}]}
+
+
+def test_a_one_sided_magnitude_is_said_on_the_page():
+    """The summary printed "time_constant_s >= 120 (not determined)"; the page showed "–" and "–" (fails before)."""
+    from scenarios.reports import _magnitude_rows
+
+    rep = _finding("warm_up", {"initial_offset_um": -1.28, "time_constant_s": None},
+                   {"initial_offset_um": 0.39, "time_constant_s": None},
+                   {"one_sided": {"time_constant_s": {"at_least": 119.53}}})
+    assert _magnitude_rows(rep, "positioning") == [
+        ["warm_up", "initial_offset_um", -1.28, 0.39, ""],
+        ["warm_up", "time_constant_s", ">= 119.5", "not determined", ""]]
+    rep["findings"][0]["evidence"]["one_sided"] = {"time_constant_s": {"at_most": 3.0}}
+    assert _magnitude_rows(rep, "positioning")[1][2:4] == ["<= 3", "not determined"]
+
+
+def test_a_defect_centre_carries_its_frame_and_its_images():
+    """gen_a local_scale_defect 1121's finding as its JSON gives it (hexagon-pocket-sym at C 0/180: the half
+    turn's image at -52.59 mm): the centre's row says its frame in core's words, and a row per image gives the
+    image's centre, the centre's U95 and the JSON's text (fails before: no note, no image row)."""
+    from core.discover import DEFECT_CENTRE_FRAME
+    from scenarios.reports import MAGNITUDE_COLUMNS, _magnitude_rows
+
+    text = ("the design cannot tell this bump from one on the Y axis at -52.59 mm (its image under a 180 deg turn "
+            "about the C axis at X 0.00, Y 0.00 mm): both fit the touches alike")
+    rep = _finding("local_scale_defect",
+                   {"axis": "Y", "symbol": "EYY", "centre_mm": 52.59, "half_width_mm": 3.56, "amplitude_um": 9.59},
+                   {"axis": None, "symbol": None, "centre_mm": 0.889, "half_width_mm": 2.3, "amplitude_um": 0.96},
+                   {"centre_images": [{"axis": "Y", "centre_mm": -52.59, "turn_deg": 180, "amplitude_sign": "same",
+                                       "text": text},
+                                      {"axis": "X", "centre_mm": 10.0, "turn_deg": 90, "amplitude_sign": "opposite",
+                                       "text": "made up"}]})
+    rows = _magnitude_rows(rep, "planar")
+    assert len(MAGNITUDE_COLUMNS) == 5 and all(len(r) == 5 for r in rows)
+    assert [r[1] for r in rows] == ["axis", "symbol", "centre_mm", "centre_mm (an image: Y axis)",
+                                    "centre_mm (an image: X axis)", "half_width_mm", "amplitude_um"]
+    assert rows[2] == ["local_scale_defect", "centre_mm", 52.59, 0.889,
+                       "centre_mm: " + DEFECT_CENTRE_FRAME.format(axis="Y")]
+    assert "the machine's Y axis position in mm" in rows[2][4]
+    assert rows[3] == ["local_scale_defect", "centre_mm (an image: Y axis)", -52.59, 0.889, text]
+    assert rows[4][4] == "made up (its amplitude of the opposite sign)"
+    # without images: the frame only, no extra row
+    rep["findings"][0]["evidence"] = {}
+    assert [r[1] for r in _magnitude_rows(rep, "planar")].count("centre_mm (an image: Y axis)") == 0
