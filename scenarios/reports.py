@@ -258,7 +258,13 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
     target, tlabel = positioning_target(bl)
     direction = np.asarray(bl.data.direction, int)
     out_idx = [int(np.flatnonzero(bl.rows == q)[0]) for q in rep["outlier_rows"]]
-    if rec is not None:
+    if rec is not None:   # what the probe-log page records: the residuals as series, then the findings (session 36)
+        tu = "deg" if (bl.info or {}).get("target_unit") == "deg" else "mm"
+        record.log_positioning_residuals(rec, t_s, target, direction, d.residuals_baseline_um, outlier_rows=out_idx,
+                                         clock=clock, target_unit=tu, unit=sym, path=record.RESIDUALS + "/baseline")
+        fin = np.isfinite(d.residuals_extended_um)
+        record.log_positioning_residuals(rec, t_s[fin], target[fin], direction[fin], d.residuals_extended_um[fin],
+                                         clock=clock, target_unit=tu, unit=sym, path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", said(record.findings_markdown(r)))
     nz = r["noise_um"]
     secs = [

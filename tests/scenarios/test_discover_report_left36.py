@@ -152,3 +152,26 @@ def test_a_defect_centre_carries_its_frame_and_its_images():
     # without images: the frame only, no extra row
     rep["findings"][0]["evidence"] = {}
     assert [r[1] for r in _magnitude_rows(rep, "planar")].count("centre_mm (an image: Y axis)") == 0
+
+
+def test_a_positioning_recording_holds_the_residuals(tmp_path):
+    """The positioning page's recording held only the findings' text (rep35); now also the baseline's and the
+    extended model's residuals as the page draws them, each direction apart, against the reading order here (no
+    clock) and the target. Read back with rerun's own reader; the values are the discovery's residuals."""
+    from scenarios.reports import discovery_report
+    from tests.viz.test_record import read, scalars
+
+    d, rep, _, _ = _sections(False)
+    folder = discovery_report(tmp_path / "r", d, rep, title="no clock")
+    data = read(folder / "recording.rrd")
+    bl = d.baseline
+    out = set(rep["outlier_rows"])
+    for sign, word in ((1, "plus"), (-1, "minus")):
+        idx = [i for i in range(bl.n) if bl.data.direction[i] == sign and i not in out]
+        e = f"/discover/residuals/baseline/vs_time_{word}"
+        assert data[e]["reading"] == idx and "campaign_time" not in data[e]
+        assert np.allclose(scalars(data, e), d.residuals_baseline_um[idx])
+        ext = f"/discover/residuals/extended/vs_target_{word}"   # (every finite row: no outliers drawn apart)
+        re = d.residuals_extended_um[(bl.data.direction == sign) & np.isfinite(d.residuals_extended_um)]
+        assert np.allclose(sorted(scalars(data, ext)), sorted(re))
+    assert "warm_up" in data["/reports/discovery"]["TextDocument:text"][0][0]
