@@ -173,9 +173,11 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     secs.append(Section("Workpiece per target (discovery)",
                         text=("Not identifiable by this design: no estimate is reported." if not rep["workpiece_identifiable"]
                               else f"Extended estimate not offered: {no['reason']}; the baseline's is the estimate "
-                                   "(the extended fit's own in the JSON, extended_fit_um)." if no else ""),
+                                   "(the extended fit's own in the JSON, extended_fit_um)." if no else "")
+                        + ("" if not rep["workpiece_identifiable"] else _gauge_words(rep)),
                         tables=[Table(
-                            ["target", "baseline / µm", "U95 / µm", "extended / µm", "U95 / µm"],
+                            ["target", "baseline / µm", "U95 in the map's gauge / µm", "extended / µm",
+                             "U95 in the map's gauge / µm"],
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
                               w["extended_u95_um"]] for w in rep["workpiece"]])]))
     return secs
@@ -900,6 +902,22 @@ def _log_machine_bodies(rec, record, t, art=None) -> None:
     record.log_mesh(rec, record.SPINDLE, np.asarray(spindle.vertices), np.asarray(spindle.faces),
                     color=(150, 150, 160))
     record.log_probe_path(rec, t.pn_R)
+
+
+def _gauge_words(rep: dict) -> str:
+    """What the workpiece table's figures are in (a paragraph): the map's gauge, and the U95 of the form beside it
+    (``workpiece_u95_gauge_free``, vmt discover's: the figure the engine's WORKPIECE_U95_GROWTH_WITHHELD judges)
+    where the report has it (session 36)."""
+    gf = rep.get("workpiece_u95_gauge_free")
+    text = ("\n\nEach target's estimate and U95 below are in the map's gauge: a shift, rotation and scale of the part "
+            "and a common offset are not seen by self-calibration, so they are fixed by convention, and the largest "
+            "per-target U95 mostly measures that convention.")
+    if gf:
+        ext = "the extended fit's" if gf.get("extended_withheld") else "extended"
+        text += (f" The U95 of the part's form, the RMS over {gf['targets']} targets of each one's U95 (k = 2) with "
+                 f"that shift, rotation, scale and offset removed: baseline {gf['baseline_um']:.3f} µm, {ext} "
+                 f"{gf['extended_um']:.3f} µm.")
+    return text
 
 
 def _not_counted_note(rep: dict) -> str:

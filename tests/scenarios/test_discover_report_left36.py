@@ -175,3 +175,116 @@ def test_a_positioning_recording_holds_the_residuals(tmp_path):
         re = d.residuals_extended_um[(bl.data.direction == sign) & np.isfinite(d.residuals_extended_um)]
         assert np.allclose(sorted(scalars(data, ext)), sorted(re))
     assert "warm_up" in data["/reports/discovery"]["TextDocument:text"][0][0]
+
+
+# --- the workpiece's U95: the figure the engine judges, with its meaning; the table's in its gauge --------------------
+
+def _summary_report(**extra):
+    from tests.scenarios.test_discover_cli_summary import WP, _report
+
+    rep = _report(WP)
+    rep.update(extra)
+    return rep
+
+
+def test_the_summary_prints_the_u95_of_the_form_with_its_meaning():
+    """Known answer on a hand-written report: the gauge-free figures as the line's head, the largest per-target U95
+    kept and said to be in the map's gauge (fails before: "U95 max 2.000 -> 1.250 um" alone)."""
+    from scenarios.cli.discover import summary_lines
+
+    gf = {"baseline_um": 0.5, "extended_um": 0.25, "ratio": 0.5, "targets": 2, "extended_withheld": False,
+          "what": "..."}
+    w = [ln for ln in summary_lines(_summary_report(workpiece_u95_gauge_free=gf)) if ln.startswith("workpiece")]
+    assert w == ["workpiece  U95 of the form 0.500 -> 0.250 um (baseline -> extended: RMS over 2 targets of each one's "
+                 "U95, k = 2, with the part's shift, rotation, scale and offset removed, what the data decide of the "
+                 "part; per target in the map's gauge at most 2.000 -> 1.250 um); largest change -2.000 um at b (in "
+                 "the gauge: shift, rotation and scale included)"]
+    # withheld by the smooth rule (its reason says nothing of the form's U95): the figure is added; by the U95 rule
+    # (its reason says it): not twice
+    no = {"withheld": True, "rule": "smooth_gain_interval", "reason": "the smooth has not earned it",
+          "u95_max_um": {"baseline": 2.0, "extended": 9.0, "ratio": 4.5}}
+    gf["extended_withheld"] = True
+    w = [ln for ln in summary_lines(_summary_report(workpiece_u95_gauge_free=gf, workpiece_not_offered=no))
+         if ln.startswith("workpiece")]
+    assert w == ["workpiece  extended estimate not offered: the smooth has not earned it; U95 of the form 0.500 um, "
+                 "the extended fit's 0.250 um (RMS over 2 targets, the part's shift, rotation, scale and offset "
+                 "removed); the baseline's is the estimate (U95 max in the map's gauge 2.000 um; the extended fit's "
+                 "9.000 um)"]
+    no["rule"] = "u95_growth"
+    w = [ln for ln in summary_lines(_summary_report(workpiece_u95_gauge_free=gf, workpiece_not_offered=no))
+         if ln.startswith("workpiece")]
+    assert "U95 of the form" not in w[0] and "(U95 max in the map's gauge 2.000 um;" in w[0]
+
+
+@functools.lru_cache(maxsize=None)
+def _drift():
+    import tempfile
+    from pathlib import Path
+
+    from core.probelog import read_probe_log
+    from scenarios.discover_run import workpiece_u95_gauge_free
+    from tests.discover_helpers import discovered
+    from tests.scenarios.test_discover_cli_summary import drift_log
+
+    with tempfile.TemporaryDirectory() as tmp:
+        log = read_probe_log(drift_log(Path(tmp)))
+    d = discovered(log)
+    return log, d, d.to_report(), workpiece_u95_gauge_free(d)
+
+
+def test_the_u95_of_the_form_is_the_gauge_removed_from_the_covariance():
+    """A simulated cross pocket with a drift (review 27's drift run, named thermal_drift): the figure is the RMS of
+    2 sqrt(diag(P C P)) with P removing the span of the part's shift, rotation, scale and offset, P built here from
+    the log's own wx/wy/wnx/wny columns (a route to the geometry the engine does not take) by a pseudo-inverse;
+    the report's per-target U95 is 2 sqrt(diag C), the gauge's, larger at its largest."""
+    from core.units import UM
+
+    log, d, rep, gf = _drift()
+    assert rep["cause"] == "thermal_drift" and gf is not None and not gf["extended_withheld"]
+    first = {}
+    for i, tg in enumerate(log.col("target")):
+        first.setdefault(tg, i)
+    ix = np.array([first[w["target"]] for w in rep["workpiece"]])
+    P = np.column_stack([log.col("wx_mm")[ix], log.col("wy_mm")[ix]]) * 1e-3
+    N = np.column_stack([log.col("wnx")[ix], log.col("wny")[ix]])
+    B = np.column_stack([N[:, 0], N[:, 1], N[:, 1] * P[:, 0] - N[:, 0] * P[:, 1], np.sum(N * P, axis=1),
+                         np.ones(len(P))])
+    Pm = np.eye(len(P)) - B @ np.linalg.pinv(B)
+    for C, key, figure in ((d.cov_G_baseline, "baseline_u95_um", gf["baseline_um"]),
+                           (d.cov_G_extended, "extended_u95_um", gf["extended_um"])):
+        C = np.asarray(C, float)
+        # 1e-9 um: the same doubles up to the order of the sums
+        assert np.allclose([w[key] for w in rep["workpiece"]], 2 * np.sqrt(np.diag(C)) / UM, atol=1e-9)
+        u = 2 * np.sqrt(np.maximum(np.diag(Pm @ C @ Pm.T), 0)) / UM
+        # 1e-6 relative: a pseudo-inverse's projector against the engine's QR one
+        assert figure == pytest.approx(float(np.sqrt(np.mean(u ** 2))), rel=1e-6)
+        assert figure < max(w[key] for w in rep["workpiece"])
+    assert gf["targets"] == len(rep["workpiece"])
+
+
+def test_a_withheld_workpiece_s_figure_is_the_one_the_rule_judged():
+    """gen_a feed_latency 1009 (a tuning seed; session 35's one campaign beyond the factor 3: 4.75): the extended
+    workpiece is withheld, and the figure vmt discover writes is the engine's own, baseline and the extended fit's."""
+    from scenarios.blind import gen_a
+    from scenarios.discover_run import workpiece_u95_gauge_free
+    from tests.discover_helpers import discovered
+
+    log, _ = gen_a.generate("feed_latency", 1009)
+    d = discovered(log)
+    rep = d.to_report()
+    gf = workpiece_u95_gauge_free(d)
+    judged = rep["workpiece_not_offered"]["u95_rms_gauge_free_um"]
+    assert gf["extended_withheld"] and rep["workpiece_not_offered"]["rule"] == "u95_growth"
+    assert (gf["baseline_um"], gf["extended_um"]) == (judged["baseline"], judged["extended"])
+
+
+def test_the_page_says_the_gauge_of_its_workpiece_table():
+    """The page's workpiece table names its U95 columns' gauge, and the section says the U95 of the form."""
+    from scenarios.reports import _discovery_sections
+
+    _, d, rep, gf = _drift()
+    rep = dict(rep, workpiece_u95_gauge_free=gf)
+    sec = next(s for s in _discovery_sections(d, None, rep) if s.title == "Workpiece per target (discovery)")
+    assert sec.tables[0].columns == ("target", "baseline / µm", "U95 in the map's gauge / µm", "extended / µm",
+                                     "U95 in the map's gauge / µm")
+    assert f"baseline {gf['baseline_um']:.3f} µm, extended {gf['extended_um']:.3f} µm" in sec.text
