@@ -115,8 +115,11 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     if rec is not None:
         record.log_residuals(rec, t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx,
                              path=record.RESIDUALS + "/baseline")
-        res_e = np.where(np.isfinite(d.residuals_extended_um), d.residuals_extended_um, 0.0)
-        record.log_residuals(rec, t_s, approach_deg, res_e, path=record.RESIDUALS + "/extended")
+        # the rows the extended model has a residual for, as its figure draws them (session 36: a row without one,
+        # NaN, was recorded as a residual of 0)
+        fe = np.isfinite(d.residuals_extended_um)
+        record.log_residuals(rec, t_s[fe], approach_deg[fe], d.residuals_extended_um[fe],
+                             path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", record.findings_markdown(rep))
     nz = rep["noise_um"]
     secs = [
@@ -340,11 +343,14 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
     rows = _magnitude_rows(rep, "positioning", clock=clock)
     if rows:
         secs.append(Section("Fitted magnitudes", tables=[Table(MAGNITUDE_COLUMNS, rows)]))
+    no = r.get("workpiece_not_offered")   # (the extended cells null: said why, as the probe-log page says it)
     secs.append(Section("Mean deviation per target and direction (discovery)",
                         text="The baseline's estimand, ISO 230-2's mean unidirectional positional deviation per "
                              "target and approach direction, and the same under the extended model (a drift or "
                              "warm-up taken out), each with its U95 (k = 2). vmt iso230-2 --report draws the "
-                             "standard's figures of the test.",
+                             "standard's figures of the test."
+                             + (f"\n\nExtended estimate not offered: {said(no['reason'])}; the baseline's is the "
+                                "estimate (the extended fit's own in the JSON, extended_fit_um)." if no else ""),
                         tables=[Table(
                             ["target", f"baseline / {sym}", f"U95 / {sym}", f"extended / {sym}", f"U95 / {sym}"],
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
