@@ -937,6 +937,11 @@ def _not_counted_note(rep: dict) -> str:
 
 
 def _verdict(rep: dict) -> str:
+    """The verdict paragraph(s) of a discovery page: the cause (with its ambiguity and the reason for it, as the
+    command's summary says them: the page named the cause bare where the summary printed "(ambiguous: ...)"), the
+    gain, where the structure was, and the pre-travel lobes the design cannot see (``not_determined``; session 36)."""
+    nd = rep.get("not_determined") or {}
+    unseen = f"\n\nNot seen: {nd['what'].rstrip('.')}." if nd.get("pretravel_lobe_orders") else ""
     if rep["cause"] == "none":
         from core.discover import not_counted_words
 
@@ -944,13 +949,21 @@ def _verdict(rep: dict) -> str:
         if why:  # a diagnosis the page draws, significant alone yet no structure: said, not denied (review30c)
             return ("No candidate cause beats the baseline out of sample, and no residual structure counts: "
                     + "; ".join(f"{c}: {w}" for c, w in why.items())
-                    + ". The baseline explains the data within the probing noise.")
+                    + ". The baseline explains the data within the probing noise." + unseen)
         return ("No candidate cause beats the baseline out of sample and the residuals show no "
-                "structure: the baseline explains the data within the probing noise.")
+                "structure: the baseline explains the data within the probing noise." + unseen)
+
+    def ambiguous(f):
+        return (f.get("evidence") or {}).get("confidence") == "ambiguous"
+
     names = ", ".join(f["cause"] for f in rep["findings"])
+    first = rep["findings"][0] if rep["findings"] else {}
     g = rep["gain"]
     where = "; ".join([d["text"] for d in rep["diagnosis"] if d["p_value"] < 0.01][:3])
-    return (f"Cause: {rep['cause']} (findings: {names}). The extended model cuts the residual RMS by "
-            f"a factor {1 / max(g['rms_ratio'], 1e-9):.2f} and the cross-validated RMS by "
-            f"{1 / max(g['cv_rms_ratio'], 1e-9):.2f}." + (f" Where the baseline's residuals had structure: "
-                                                          f"{where}." if where else ""))
+    why = "".join(f"\n\n{f['cause']} is ambiguous: "
+                  f"{(f['evidence'].get('confidence_reason') or 'no reason given').rstrip('.')}."
+                  for f in rep["findings"] if ambiguous(f))
+    return (f"Cause: {rep['cause']}{', ambiguous' if ambiguous(first) else ''} (findings: {names}). The extended "
+            f"model cuts the residual RMS by a factor {1 / max(g['rms_ratio'], 1e-9):.2f} and the cross-validated "
+            f"RMS by {1 / max(g['cv_rms_ratio'], 1e-9):.2f}." + (f" Where the baseline's residuals had structure: "
+                                                                 f"{where}." if where else "") + why + unseen)

@@ -320,3 +320,25 @@ def test_a_withheld_positioning_estimate_says_why():
                                            "reason": "the unnamed smooth in time has not earned its gain"})
     sec = next(s for s in _positioning_sections(d, rep) if s.title.startswith("Mean deviation"))
     assert "Extended estimate not offered: the unnamed smooth in time has not earned its gain" in sec.text
+
+
+def test_the_verdict_says_an_ambiguous_cause_and_the_lobes_not_seen():
+    """The summary printed "finding    local_scale_defect (ambiguous: ...)" and "not seen   pre-travel lobes k = 1,
+    2"; the page's verdict named the cause bare and said nothing of the lobes (fails before). Reports by hand."""
+    from scenarios.reports import _verdict
+
+    rep = {"cause": "local_scale_defect", "gain": {"rms_ratio": 0.5, "cv_rms_ratio": 0.8}, "diagnosis": [],
+           "findings": [{"cause": "local_scale_defect", "evidence": {"confidence": "ambiguous",
+                                                                       "confidence_reason": "a smooth explains as much."}},
+                        {"cause": "outlier", "evidence": {"confidence": "named"}}],
+           "not_determined": {"pretravel_lobe_orders": [1, 2], "what": "pre-travel lobes of order k = 1, 2 are not "
+                                                                       "determined on this design"}}
+    v = _verdict(rep)
+    assert v.startswith("Cause: local_scale_defect, ambiguous (findings: local_scale_defect, outlier).")
+    assert "\n\nlocal_scale_defect is ambiguous: a smooth explains as much.\n\n" in v and "outlier is" not in v
+    assert v.endswith("\n\nNot seen: pre-travel lobes of order k = 1, 2 are not determined on this design.")
+    rep["findings"][0]["evidence"]["confidence"] = "named"
+    rep["not_determined"]["pretravel_lobe_orders"] = []
+    assert _verdict(rep).startswith("Cause: local_scale_defect (findings:") and "\n\n" not in _verdict(rep)
+    none = dict(rep, cause="none", findings=[], not_determined={"pretravel_lobe_orders": [3], "what": "k = 3."})
+    assert _verdict(none).endswith("within the probing noise.\n\nNot seen: k = 3.")
