@@ -33,6 +33,9 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     fc = workpiece_form_change(d)
     if fc is not None:
         rep["workpiece_form_change"] = fc
+    gf = workpiece_u95_gauge_free(d)
+    if gf is not None:
+        rep["workpiece_u95_gauge_free"] = gf
     nd = lobes_not_determined(d)
     if nd is not None:
         rep["not_determined"] = nd
@@ -129,6 +132,47 @@ def workpiece_form_change(d) -> dict | None:
             "what": "extended minus baseline workpiece, its shift, rotation, scale and common offset removed"
                     + (" (and the tilt, twist and growth of the raised targets)" if dz is not None else "")
                     + ": the change of the form, the part the gauge does not decide"}
+
+
+#: What ``workpiece_u95_gauge_free`` measures, in words (the JSON's ``what``; the summary says it shorter).
+GAUGE_FREE_U95_WHAT = ("the RMS over the targets of each target's U95 (k = 2) once the part's shift, rotation, "
+                       "scale and common offset are removed (what self-calibration cannot see, so what the data "
+                       "decide of the part's form); the per-target U95 of the workpiece table is in the map's gauge "
+                       "and its largest value mostly measures that gauge")
+
+
+def workpiece_u95_gauge_free(d) -> dict | None:
+    """The workpiece's U95 outside the part's gauge, baseline and extended, or None.
+
+    The figure :data:`core.discover.WORKPIECE_U95_GROWTH_WITHHELD` judges, by the engine's own function
+    (``core.discover._u95_gauge_free``: imported, not copied, so the summary prints what the rule reads): the RMS
+    over the targets both models determine of each target's U95 (k = 2) once the span of
+    :func:`core.selfcal.workpiece_gauge_basis` (the part's shift, rotation, scale and common offset) is removed.
+    The per-target U95 of the report (``baseline_u95_um``, ``extended_u95_um``) is in the map's gauge; its largest
+    value mostly measures that gauge (docs/discovery.md, "U95 max" of the summary before session 36). Where the
+    extended estimate is withheld, the extended figure is the extended fit's (the one the rule judged). None
+    without geometry, with a factored covariance (a long log's) or fewer than six targets, and for an ISO 230-2
+    test (its means per target have no gauge).
+    """
+    from core.discover import _u95_gauge_free
+
+    bl = d.baseline
+    if getattr(bl, "kind", None) != "planar" or not d.workpiece_identifiable or not d.findings:
+        return None
+    withheld = d.workpiece_not_offered is not None
+    Ge = d.G_extended_fit_m if withheld else d.G_extended_m
+    cGe = d.cov_G_extended_fit if withheld else d.cov_G_extended
+    if d.G_baseline_m is None or Ge is None:
+        return None
+    g = _u95_gauge_free(bl, d.G_baseline_m, Ge, d.cov_G_baseline, cGe)
+    if g is None:
+        return None
+    import numpy as np
+
+    e, b = g
+    n = int(np.sum(np.isfinite(np.asarray(d.G_baseline_m, float)) & np.isfinite(np.asarray(Ge, float))))
+    return {"baseline_um": b, "extended_um": e, "ratio": e / b if b > 0 else None, "targets": n,
+            "extended_withheld": withheld, "what": GAUGE_FREE_U95_WHAT}
 
 
 def lobes_not_determined(d) -> dict | None:

@@ -115,8 +115,11 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
     if rec is not None:
         record.log_residuals(rec, t_s, approach_deg, d.residuals_baseline_um, outlier_rows=out_idx,
                              path=record.RESIDUALS + "/baseline")
-        res_e = np.where(np.isfinite(d.residuals_extended_um), d.residuals_extended_um, 0.0)
-        record.log_residuals(rec, t_s, approach_deg, res_e, path=record.RESIDUALS + "/extended")
+        # the rows the extended model has a residual for, as its figure draws them (session 36: a row without one,
+        # NaN, was recorded as a residual of 0)
+        fe = np.isfinite(d.residuals_extended_um)
+        record.log_residuals(rec, t_s[fe], approach_deg[fe], d.residuals_extended_um[fe],
+                             path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", record.findings_markdown(rep))
     nz = rep["noise_um"]
     secs = [
@@ -168,14 +171,16 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
                             t_s[fin], approach_deg[fin], d.residuals_extended_um[fin])}))
     rows = _magnitude_rows(rep, "planar")
     if rows:
-        secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
+        secs.append(Section("Fitted magnitudes", tables=[Table(MAGNITUDE_COLUMNS, rows)]))
     no = rep.get("workpiece_not_offered")  # (core.discover.WORKPIECE_U95_GROWTH_WITHHELD: extended cells null)
     secs.append(Section("Workpiece per target (discovery)",
                         text=("Not identifiable by this design: no estimate is reported." if not rep["workpiece_identifiable"]
                               else f"Extended estimate not offered: {no['reason']}; the baseline's is the estimate "
-                                   "(the extended fit's own in the JSON, extended_fit_um)." if no else ""),
+                                   "(the extended fit's own in the JSON, extended_fit_um)." if no else "")
+                        + ("" if not rep["workpiece_identifiable"] else _gauge_words(rep)),
                         tables=[Table(
-                            ["target", "baseline / µm", "U95 / µm", "extended / µm", "U95 / µm"],
+                            ["target", "baseline / µm", "U95 in the map's gauge / µm", "extended / µm",
+                             "U95 in the map's gauge / µm"],
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
                               w["extended_u95_um"]] for w in rep["workpiece"]])]))
     return secs
@@ -183,6 +188,34 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
 
 #: An ISO 230-2 test's covariates whose basis is not one variable, drawn against this one (core.baseline.positioning).
 _POSITIONING_PLOT_AS = {"position_by_cycle": "position", "time_by_direction": "time", "direction_by_cycle": "cycle"}
+
+
+#: The positioning page's name for what it draws as time when the log has no clock (:func:`positioning_clock`).
+READING_ORDER_LABEL = "the reading order (index from 0; the log has no clock)"
+#: Said once on the positioning page of a log without a clock, and beside each magnitude in s or h.
+NO_CLOCK_NOTE = ("This log has no clock (no t_s column, or one with empty cells): wherever this page says time, "
+                 "it is the reading order, the valid readings counted 0, 1, 2, ... in the log's order, and a "
+                 "figure in s or h counts readings, not seconds (1 s is one reading, 1 h 3,600).")
+#: The positioning covariates built on the time (core.baseline.positioning): the reading order where there is no clock.
+_TIME_COVARIATES = ("time", "time_by_direction")
+
+
+def positioning_clock(bl) -> bool:
+    """Whether a positioning baseline's time is the log's clock (``t_s``), False where it is the reading order.
+
+    :func:`core.baseline.positioning` takes the reading order, ``0, 1, ..., n - 1`` over the valid readings, for
+    the time when the log gives no complete ``t_s`` (no column, or an empty cell); the engine then reads it as
+    seconds. Told here by those very numbers (a clock reading exactly 0, 1, 2, ... s is the same numbers: drawn
+    as the order, which it is too).
+    """
+    t = np.asarray(bl.data.t_s, float)
+    return not np.array_equal(t, np.arange(t.size, dtype=float))
+
+
+def _time_unit_param(key: str) -> bool:
+    """Whether a finding's parameter is in a unit of time (``time_constant_s``, ``over_h``): in readings without a
+    clock."""
+    return key.endswith(("_s", "_h"))
 
 
 def positioning_target(bl) -> tuple[np.ndarray, str]:
@@ -224,14 +257,24 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
     bl = d.baseline
     n = bl.n
     t_s = np.asarray(bl.data.t_s, float)
+    clock = positioning_clock(bl)   # (without one, t_s holds the reading order: said so on every figure and table)
+    t_label = "t / s" if clock else READING_ORDER_LABEL
+    no_clock = "" if clock else " " + NO_CLOCK_NOTE
     target, tlabel = positioning_target(bl)
     direction = np.asarray(bl.data.direction, int)
     out_idx = [int(np.flatnonzero(bl.rows == q)[0]) for q in rep["outlier_rows"]]
-    if rec is not None:
+    if rec is not None:   # what the probe-log page records: the residuals as series, then the findings (session 36)
+        tu = "deg" if (bl.info or {}).get("target_unit") == "deg" else "mm"
+        record.log_positioning_residuals(rec, t_s, target, direction, d.residuals_baseline_um, outlier_rows=out_idx,
+                                         clock=clock, target_unit=tu, unit=sym, path=record.RESIDUALS + "/baseline")
+        fin = np.isfinite(d.residuals_extended_um)
+        record.log_positioning_residuals(rec, t_s[fin], target[fin], direction[fin], d.residuals_extended_um[fin],
+                                         clock=clock, target_unit=tu, unit=sym, path=record.RESIDUALS + "/extended")
         record.log_markdown(rec, "discovery", said(record.findings_markdown(r)))
     nz = r["noise_um"]
     secs = [
-        Section("Discovery: verdict", text=_verdict(r).replace("probing noise", "repeatability"),
+        Section("Discovery: verdict", text=_verdict(r).replace("probing noise", "repeatability")
+                + ("" if clock else "\n\n" + NO_CLOCK_NOTE),
                 figures={"findings": figures.findings_figure(r, quantity="the deviation", unit=sym)},
                 tables=[Table(["model", f"RMS / {sym}", f"cross-validated RMS / {sym}"],
                               [[r["baseline"]["model"], r["baseline"]["rms_um"], r["baseline_cv_rms_um"]],
@@ -261,6 +304,8 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
             continue
         if name == "position":
             x, label, ticks = target, tlabel, None
+        elif name == "time" and not clock:   # the reading order, not seconds (nor hours beyond 7,200 readings)
+            x, label, ticks = np.asarray(cov.values, float), READING_ORDER_LABEL, None
         else:
             x, label, ticks = diagnosis_axis(cov, np.asarray(cov.values), bl)
             if name == "cycle" and ticks is not None:   # the cycles by the log's own numbers, not their indices
@@ -269,36 +314,43 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
         panels.append({"x": x[rows], "residual_um": d.residuals_baseline_um[rows], "fitted_um": dg.fitted_um,
                        "xlabel": label, "text": words.get(dg.covariate, said(dg.words)),
                        **({"xticklabels": ticks} if ticks is not None else {})})
-    diag_rows = [[g["covariate"], g["explained_rms_um"], g["p_value"], g["text"]] for g in r["diagnosis"]]
+    diag_rows = [[g["covariate"] + ("" if clock or g["covariate"] not in _TIME_COVARIATES else
+                                    " (time = the reading order here)"),
+                  g["explained_rms_um"], g["p_value"], g["text"]] for g in r["diagnosis"]]
     secs.append(Section("Diagnosis: where the structure lives",
                         text="For every covariate the test holds (time, cycle, target position, reading order, "
                              "the logged temperatures, and the position, time and direction differently in each "
                              "cycle), a smooth function of it is added to the baseline and tested (nested F test, "
                              f"Holm over the covariates); the explained RMS is debiased. Drawn: each with p < "
                              f"{FIGURE_P:g}." + ("" if panels else f" No covariate has p < {FIGURE_P:g}: "
-                                                                 "no panel to draw.") + said(_not_counted_note(rep)),
+                                                                 "no panel to draw.") + said(_not_counted_note(rep))
+                             + no_clock,
                         figures={"diagnosis": figures.diagnosis_figure(
                             panels, ylabel=f"residual of the deviation / {sym}")} if panels else {},
                         tables=[Table(["covariate", f"explained RMS / {sym}", "p (Holm)", "in words"], diag_rows)]))
     secs.append(Section("Baseline residuals: what the model gets wrong",
                         text="Residuals of the baseline (the standard's mean per target and direction) against "
-                             "time and the target, each approach direction apart.",
+                             + ("time" if clock else "the reading order (the log has no clock)")
+                             + " and the target, each approach direction apart.",
                         figures={"residuals_baseline": figures.positioning_residuals_figure(
                             t_s, target, direction, d.residuals_baseline_um, unit=sym, target_label=tlabel,
-                            outlier_rows=out_idx)}))
+                            outlier_rows=out_idx, time_label=t_label)}))
     fin = np.isfinite(d.residuals_extended_um)
     secs.append(Section("Extended model residuals",
                         figures={"residuals_extended": figures.positioning_residuals_figure(
                             t_s[fin], target[fin], direction[fin], d.residuals_extended_um[fin], unit=sym,
-                            target_label=tlabel, title="Residuals of the extended model")}))
-    rows = _magnitude_rows(rep, "positioning")
+                            target_label=tlabel, title="Residuals of the extended model", time_label=t_label)}))
+    rows = _magnitude_rows(rep, "positioning", clock=clock)
     if rows:
-        secs.append(Section("Fitted magnitudes", tables=[Table(["cause", "parameter", "value", "U95 (k=2)"], rows)]))
+        secs.append(Section("Fitted magnitudes", tables=[Table(MAGNITUDE_COLUMNS, rows)]))
+    no = r.get("workpiece_not_offered")   # (the extended cells null: said why, as the probe-log page says it)
     secs.append(Section("Mean deviation per target and direction (discovery)",
                         text="The baseline's estimand, ISO 230-2's mean unidirectional positional deviation per "
                              "target and approach direction, and the same under the extended model (a drift or "
                              "warm-up taken out), each with its U95 (k = 2). vmt iso230-2 --report draws the "
-                             "standard's figures of the test.",
+                             "standard's figures of the test."
+                             + (f"\n\nExtended estimate not offered: {said(no['reason'])}; the baseline's is the "
+                                "estimate (the extended fit's own in the JSON, extended_fit_um)." if no else ""),
                         tables=[Table(
                             ["target", f"baseline / {sym}", f"U95 / {sym}", f"extended / {sym}", f"U95 / {sym}"],
                             [[w["target"], w["baseline_um"], w["baseline_u95_um"], w["extended_um"],
@@ -306,18 +358,58 @@ def _positioning_sections(d, rep: dict, rec=None) -> list:
     return secs
 
 
-def _magnitude_rows(rep: dict, kind: str) -> list:
-    """The "Fitted magnitudes" table: cause, parameter, value, U95 as the JSON gives them, except a fixed
-    parameter (its unit, U95 "fixed") and an angle whose U95 reaches half its circle (value "n/d"), said as the
-    summary says them (scenarios.discover_run.magnitude_said; audit35 N1, N2)."""
+#: The "Fitted magnitudes" table's columns (:func:`_magnitude_rows`).
+MAGNITUDE_COLUMNS = ("cause", "parameter", "value", "U95 (k=2)", "note")
+
+
+def _magnitude_rows(rep: dict, kind: str, clock: bool = True) -> list:
+    """The "Fitted magnitudes" table (:data:`MAGNITUDE_COLUMNS`): cause, parameter, value, U95 as the JSON gives
+    them, and a note, said as the summary says them:
+
+    - a fixed parameter (its unit, U95 "fixed") and an angle whose U95 reaches half its circle (value "n/d")
+      (scenarios.discover_run.magnitude_said; audit35 N1, N2);
+    - a magnitude the design bounds on one side only (the finding's ``evidence.one_sided``; its value and U95
+      null in the JSON): ``>= x`` or ``<= x``, U95 "not determined" (session 36: the page showed "–" where the
+      summary printed ``time_constant_s >= 120 (not determined)``);
+    - a local defect's ``centre_mm`` with its frame (:data:`core.discover.DEFECT_CENTRE_FRAME`) in the note, and a
+      row for each image of it the design cannot tell from it (``evidence.centre_images``: its centre, the
+      centre's U95, which holds about each image alike, and the JSON's text) (session 36; cat35 added both to
+      the JSON and the summary);
+    - ``clock`` False (a positioning log without one, :func:`positioning_clock`): a parameter in s or h noted as
+      counting readings.
+    """
+    from core.discover import DEFECT_CENTRE_FRAME
+
     from scenarios.discover_run import magnitude_said
 
     rows = []
     for f in rep["findings"]:
         pu = f.get("params_u95", {})
+        ev = f.get("evidence") or {}
+        sides = ev.get("one_sided") or {}
         for k, v in f["params"].items():
             m = magnitude_said(f["cause"], k, v, pu.get(k), kind)
-            rows.append([f["cause"], k, v, pu.get(k, "")] if m is None else [f["cause"], k, m[0], m[1]])
+            side = sides.get(k) if v is None and isinstance(sides.get(k), dict) else None
+            if m is not None:
+                row = [f["cause"], k, m[0], m[1]]
+            elif side is not None and ("at_least" in side or "at_most" in side):
+                row = [f["cause"], k, (f">= {side['at_least']:.4g}" if "at_least" in side
+                                       else f"<= {side['at_most']:.4g}"), "not determined"]
+            else:
+                row = [f["cause"], k, v, pu.get(k, "")]
+            note = ""
+            if not clock and _time_unit_param(k):
+                note = "in readings, not seconds: the log has no clock (1 s is one reading)"
+            centre = (f["cause"] == "local_scale_defect" and k == "centre_mm"
+                      and isinstance(f["params"].get("axis"), str))
+            if centre:
+                note = "centre_mm: " + DEFECT_CENTRE_FRAME.format(axis=f["params"]["axis"])
+            rows.append(row + [note])
+            if centre:
+                for im in ev.get("centre_images") or ():
+                    rows.append([f["cause"], f"centre_mm (an image: {im['axis']} axis)", im["centre_mm"],
+                                 pu.get(k, ""), im["text"] + (" (its amplitude of the opposite sign)"
+                                                              if im.get("amplitude_sign") == "opposite" else "")])
     return rows
 
 
@@ -818,6 +910,22 @@ def _log_machine_bodies(rec, record, t, art=None) -> None:
     record.log_probe_path(rec, t.pn_R)
 
 
+def _gauge_words(rep: dict) -> str:
+    """What the workpiece table's figures are in (a paragraph): the map's gauge, and the U95 of the form beside it
+    (``workpiece_u95_gauge_free``, vmt discover's: the figure the engine's WORKPIECE_U95_GROWTH_WITHHELD judges)
+    where the report has it (session 36)."""
+    gf = rep.get("workpiece_u95_gauge_free")
+    text = ("\n\nEach target's estimate and U95 below are in the map's gauge: a shift, rotation and scale of the part "
+            "and a common offset are not seen by self-calibration, so they are fixed by convention, and the largest "
+            "per-target U95 mostly measures that convention.")
+    if gf:
+        ext = "the extended fit's" if gf.get("extended_withheld") else "extended"
+        text += (f" The U95 of the part's form, the RMS over {gf['targets']} targets of each one's U95 (k = 2) with "
+                 f"that shift, rotation, scale and offset removed: baseline {gf['baseline_um']:.3f} µm, {ext} "
+                 f"{gf['extended_um']:.3f} µm.")
+    return text
+
+
 def _not_counted_note(rep: dict) -> str:
     """The diagnosis section's words for the panels drawn that are no structure (significant alone, below the
     materiality or the family's level: core.discover's ``structure.baseline.not_counted``)."""
@@ -829,6 +937,11 @@ def _not_counted_note(rep: dict) -> str:
 
 
 def _verdict(rep: dict) -> str:
+    """The verdict paragraph(s) of a discovery page: the cause (with its ambiguity and the reason for it, as the
+    command's summary says them: the page named the cause bare where the summary printed "(ambiguous: ...)"), the
+    gain, where the structure was, and the pre-travel lobes the design cannot see (``not_determined``; session 36)."""
+    nd = rep.get("not_determined") or {}
+    unseen = f"\n\nNot seen: {nd['what'].rstrip('.')}." if nd.get("pretravel_lobe_orders") else ""
     if rep["cause"] == "none":
         from core.discover import not_counted_words
 
@@ -836,13 +949,21 @@ def _verdict(rep: dict) -> str:
         if why:  # a diagnosis the page draws, significant alone yet no structure: said, not denied (review30c)
             return ("No candidate cause beats the baseline out of sample, and no residual structure counts: "
                     + "; ".join(f"{c}: {w}" for c, w in why.items())
-                    + ". The baseline explains the data within the probing noise.")
+                    + ". The baseline explains the data within the probing noise." + unseen)
         return ("No candidate cause beats the baseline out of sample and the residuals show no "
-                "structure: the baseline explains the data within the probing noise.")
+                "structure: the baseline explains the data within the probing noise." + unseen)
+
+    def ambiguous(f):
+        return (f.get("evidence") or {}).get("confidence") == "ambiguous"
+
     names = ", ".join(f["cause"] for f in rep["findings"])
+    first = rep["findings"][0] if rep["findings"] else {}
     g = rep["gain"]
     where = "; ".join([d["text"] for d in rep["diagnosis"] if d["p_value"] < 0.01][:3])
-    return (f"Cause: {rep['cause']} (findings: {names}). The extended model cuts the residual RMS by "
-            f"a factor {1 / max(g['rms_ratio'], 1e-9):.2f} and the cross-validated RMS by "
-            f"{1 / max(g['cv_rms_ratio'], 1e-9):.2f}." + (f" Where the baseline's residuals had structure: "
-                                                          f"{where}." if where else ""))
+    why = "".join(f"\n\n{f['cause']} is ambiguous: "
+                  f"{(f['evidence'].get('confidence_reason') or 'no reason given').rstrip('.')}."
+                  for f in rep["findings"] if ambiguous(f))
+    return (f"Cause: {rep['cause']}{', ambiguous' if ambiguous(first) else ''} (findings: {names}). The extended "
+            f"model cuts the residual RMS by a factor {1 / max(g['rms_ratio'], 1e-9):.2f} and the cross-validated "
+            f"RMS by {1 / max(g['cv_rms_ratio'], 1e-9):.2f}." + (f" Where the baseline's residuals had structure: "
+                                                                 f"{where}." if where else "") + why + unseen)

@@ -725,7 +725,7 @@ _C_DOWN = "tab:red"
 
 def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str = "µm", target_label: str = "target / mm",
                                  outlier_rows: Sequence[int] = (),
-                                 title: str = "Residuals of the baseline model"):
+                                 title: str = "Residuals of the baseline model", time_label: str = "t / s"):
     """Discovery residuals of an ISO 230-2 test against time and target position, by approach direction.
 
     The probe log's :func:`residuals_figure` draws against the approach angle, which a positioning test does not
@@ -735,7 +735,8 @@ def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str 
     Parameters
     ----------
     t_s : (n,) float
-        Time of each reading (its order when the log has no clock), s.
+        Time of each reading, s; or, when the log has no clock, its place in the reading order (0, 1, ...), which
+        ``time_label`` then says (the panel said "t / s" over reading indices before session 36).
     target : (n,) float
         Target position of each reading in the target unit (``target_label`` says it: mm, or ° for a rotary axis).
     direction : (n,) int
@@ -744,6 +745,8 @@ def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str 
         Residual of each reading's deviation, in ``unit`` (µm, or ″ for a rotary axis).
     outlier_rows : sequence of int
         The report's outlier rows (0-based), drawn as red crosses.
+    time_label : str
+        The first panel's axis label: what ``t_s`` holds, with its unit.
     """
     t = _arr("t_s", t_s, (-1,))
     p = _arr("target", target, (-1,))
@@ -755,7 +758,7 @@ def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str 
     bad = _outlier_mask(outlier_rows, n)
     fig = _figure(9.0, 3.6)
     ax1, ax2 = fig.subplots(1, 2, sharey=True)
-    for ax, xv, xl in ((ax1, t, "t / s"), (ax2, p, target_label)):
+    for ax, xv, xl in ((ax1, t, time_label), (ax2, p, target_label)):
         for d, c, name in ((1, _C_UP, "approach +"), (-1, _C_DOWN, "approach -")):
             k = (s == d) & ~bad
             ax.plot(xv[k], r[k], "." if d > 0 else "+", color=c, ms=4 if d > 0 else 5, label=name)

@@ -24,6 +24,8 @@ entity path                        what is logged there (data in that frame)
 ``plots/rotary/<axis>/<S>``         rotary-axis error motion against angle
 ``rotary/<axis>/centre_trajectory``  Figure 13 of the self-calibration paper
 ``discover/residuals/*``           discovery residuals against time / approach
+                                   (an ISO 230-2 test's: against time or the
+                                   reading order / the target, per direction)
 ``reports/*``                      markdown tables (errors, findings)
 =================================  ==========================================
 
@@ -32,7 +34,9 @@ error values and their uncertainties are in the report units µm / µrad, as
 the results' JSON carries them (unit in each argument's name). Timelines:
 ``<axis>_um`` (sequence: axis position in integer µm) for linear error
 motions, ``<axis>_mdeg`` (sequence: millidegrees) for rotary ones,
-``campaign_time`` (duration, s) and ``approach_mdeg`` for residuals,
+``campaign_time`` (duration, s) and ``approach_mdeg`` for residuals (an ISO 230-2
+test's: ``campaign_time`` or ``reading`` (sequence: the reading order, for a log
+without a clock) and ``target_um`` or ``target_mdeg``),
 ``setup`` (sequence: set-up index) for a campaign's set-ups: the table's
 placement and the touches of that set-up, so each set-up's touches are drawn
 against the part at that set-up's pose.
@@ -83,6 +87,7 @@ _BLUE = (31, 119, 180)
 _ORANGE = (255, 127, 14)
 _GREY = (150, 150, 150)
 _RED = (214, 39, 40)
+_BLACK = (0, 0, 0)
 
 
 # --- small checks ----------------------------------------------------------
@@ -605,6 +610,75 @@ def log_residuals(rec, t_s, approach_deg, residual_um, *, outlier_rows: Sequence
              "outlier / µm")
         send("outliers_vs_approach", by_angle, rows[np.argsort(a[rows], kind="stable")], _RED,
              "outlier / µm")
+
+
+def log_positioning_residuals(rec, t, target, direction, residual, *, outlier_rows: Sequence[int] = (),
+                              clock: bool = True, target_unit: str = "mm", unit: str = "µm",
+                              path: str = RESIDUALS) -> None:
+    """Log an ISO 230-2 test's discovery residuals against time and the target, each approach direction apart.
+
+    What the report page's :func:`viz.figures.positioning_residuals_figure` draws, as rerun series:
+    ``<path>/vs_time_plus``, ``vs_time_minus``, ``vs_target_plus``, ``vs_target_minus`` (and, with outliers,
+    ``outliers_vs_time``, ``outliers_vs_target``).
+
+    Parameters
+    ----------
+    t : (n,) float
+        Time of each reading, s (timeline ``campaign_time``); with ``clock`` False its place in the reading order,
+        0, 1, ... (timeline ``reading``, a sequence: no time is made up for a log without a clock).
+    target : (n,) float
+        Target position of each reading in ``target_unit``: ``"mm"`` (timeline ``target_um``, integer µm) or
+        ``"deg"`` (``target_mdeg``, millidegrees).
+    direction : (n,) int
+        Approach direction of each reading, +1 or -1.
+    residual : (n,) float
+        Residual of each reading's deviation, in ``unit`` (µm, or ″ for a rotary axis).
+    outlier_rows : sequence of int
+        The report's outlier rows (0-based), drawn again in red.
+    """
+    import rerun as rr
+
+    tt = _arr("t", t, (-1,))
+    p = _arr("target", target, (-1,))
+    s = _arr("direction", direction, (-1,))
+    r = _arr("residual", residual, (-1,))
+    n = _same_len(t=tt, target=p, direction=s, residual=r)
+    if not np.all(np.isin(s, (1, -1))):
+        raise ConfigError("direction: each reading's must be +1 or -1")
+    if target_unit not in ("mm", "deg"):
+        raise ConfigError(f"target_unit: 'mm' or 'deg', got {target_unit!r}")
+    if not clock and not np.array_equal(tt, np.round(tt)):
+        raise ConfigError("t: without a clock it is the reading order, whole numbers")
+    rows = np.asarray(list(outlier_rows), dtype=int)
+    if rows.size and (rows.min() < 0 or rows.max() >= n):
+        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
+    bad = np.zeros(n, bool)
+    bad[rows] = True
+
+    def by_time(idx):
+        return (rr.TimeColumn("campaign_time", duration=tt[idx]) if clock
+                else rr.TimeColumn("reading", sequence=tt[idx].astype(np.int64)))
+
+    def by_target(idx):
+        return rr.TimeColumn("target_um" if target_unit == "mm" else "target_mdeg",
+                             sequence=np.round(p[idx] * 1000).astype(np.int64))
+
+    def send(sub: str, timeline_col, key: np.ndarray, idx: np.ndarray, color, name: str) -> None:
+        idx = idx[np.argsort(key[idx], kind="stable")]
+        e = f"{path}/{sub}"
+        rec.log(e, rr.SeriesPoints(names=[name], colors=[color], marker_sizes=[2.0]), static=True)
+        rec.send_columns(e, indexes=[timeline_col(idx)], columns=rr.Scalars.columns(scalars=r[idx]))
+
+    for d, word, color in ((1, "plus", _BLUE), (-1, "minus", _RED)):
+        idx = np.flatnonzero((s == d) & ~bad)
+        if idx.size:
+            name = f"residual, approach {'+' if d > 0 else '-'} / {unit}"
+            send(f"vs_time_{word}", by_time, tt, idx, color, name)
+            send(f"vs_target_{word}", by_target, p, idx, color, name)
+    if rows.size:
+        rows = np.unique(rows)
+        send("outliers_vs_time", by_time, tt, rows, _BLACK, f"outlier / {unit}")
+        send("outliers_vs_target", by_target, p, rows, _BLACK, f"outlier / {unit}")
 
 
 def log_markdown(rec, name: str, markdown: str) -> None:

@@ -27,6 +27,37 @@ BLIND_GENERATORS = ("gen_a", "gen_b", "gen_c")
 #: MFB campaigns per hidden effect (one takes 3-10 s CPU: the simulated bar; the effect-free campaign of a
 #: seed is simulated once for every effect's visibility).
 MFB_SEEDS = 2
+#: Seeds the blind checks of discovery have spent or hold in reserve, per source (``hidden``: the simulator), as
+#: ``(first, last)``, ``last`` None for no end: the studies here refuse a range that reaches into them, since a figure
+#: read on a reserved seed spends it, and one read on a spent seed judges a rule on a blind set. From the blind checks'
+#: record (docs/discovery-studies.md, "The blind check of session 26" to 34's and docs/discovery.md, "The last blind
+#: check": gen_a and gen_b 3700-3709 up to 11379, the simulator 4100 up to 8379, gen_c 5000-7379) and the seeds the
+#: lead holds for the next (gen_a and gen_b from 11400, the simulator from 8400, gen_c 7400-7999); gen_a and gen_b
+#: from 2510, the first the session's rules count as spent. Tuning seeds (gen_a/gen_b 1000-1999, the simulator
+#: 4000-4099, gen_c 0-999) and the bench's own (100-109, 2000-2009) lie outside. Session 36.
+BLIND_CHECK_SEEDS = {"gen_a": (2510, None), "gen_b": (2510, None), "gen_c": (5000, 7999), "hidden": (4100, None)}
+
+
+def check_seeds(blind_seed0: int, hidden_seed0: int, seeds: int = SEEDS, sources=tuple(BLIND_CHECK_SEEDS)) -> None:
+    """Refuse (:class:`core.exceptions.ConfigError`, one line naming every source hit) a study whose seeds
+    ``blind_seed0 .. + seeds - 1`` (gen_a, gen_b, gen_c: one range for the three) or ``hidden_seed0 ..`` (the
+    simulator) reach into :data:`BLIND_CHECK_SEEDS`, for each of ``sources``."""
+    from core.exceptions import ConfigError
+
+    said = []
+    for arg, s0, gens in (("blind_seed0", blind_seed0, [g for g in sources if g != "hidden"]),
+                          ("hidden_seed0", hidden_seed0, [g for g in sources if g == "hidden"])):
+        a = int(s0)
+        b = a + int(seeds) - 1
+        hit = [g for g in gens if b >= BLIND_CHECK_SEEDS[g][0]
+               and (BLIND_CHECK_SEEDS[g][1] is None or a <= BLIND_CHECK_SEEDS[g][1])]
+        if hit:
+            ranges = ", ".join(f"{'the simulator' if g == 'hidden' else g} {lo}-{'' if hi is None else hi}"
+                               for g in hit for lo, hi in [BLIND_CHECK_SEEDS[g]])
+            said.append(f"{arg} {a} (seeds {a}-{b}) reaches the seeds the blind checks spent or hold: {ranges}")
+    if said:
+        raise ConfigError("; ".join(said) + " (scenarios.bench.discover_study.BLIND_CHECK_SEEDS): choose seeds "
+                          "outside them, e.g. the bench's own 100 and 2000")
 
 
 def run(blind_seed0: int = 100, hidden_seed0: int = 2000) -> dict:
@@ -35,7 +66,9 @@ def run(blind_seed0: int = 100, hidden_seed0: int = 2000) -> dict:
     ``vmt bench`` runs the defaults; other seeds measure on campaigns the
     engine's thresholds were never looked at on (docs/discovery.md gives
     both). gen_c runs at the same ``blind_seed0 + s`` as gen_a and gen_b (at
-    the default, 100-109: tuning seeds for all three).
+    the default, 100-109: tuning seeds for all three). Seeds the blind checks
+    spent or hold (:data:`BLIND_CHECK_SEEDS`) are refused before any campaign
+    runs (:func:`check_seeds`).
     """
     import importlib
     import importlib.util
@@ -43,6 +76,7 @@ def run(blind_seed0: int = 100, hidden_seed0: int = 2000) -> dict:
     from scenarios.hidden import (HIDDEN_CAUSES, MFB_HIDDEN, blind_outcome, format_study, hidden_outcome,
                                   mfb_outcome, summarize)
 
+    check_seeds(blind_seed0, hidden_seed0)   # (before any campaign: a blind seed is spent by being read)
     out: dict = {}
     gens = {"hidden": None, "mfb": "mfb"}
     for g in BLIND_GENERATORS:
@@ -90,6 +124,7 @@ def outlier_trade(blind_seed0: int, hidden_seed0: int, seeds: int = SEEDS,
     from core.discover import Settings
     from scenarios.hidden import blind_outcome, hidden_outcome
 
+    check_seeds(blind_seed0, hidden_seed0, seeds, sources=tuple(OUTLIER_TRADE))
     out = []
     for rule in rules:
         st = Settings(outlier_events=rule)

@@ -123,14 +123,31 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     elif rep.get("workpiece_not_offered"):  # (core.discover.SMOOTH_WORKPIECE_EARNED, WORKPIECE_U95_GROWTH_WITHHELD)
         no = rep["workpiece_not_offered"]
         u = no.get("u95_max_um") or {}
-        out.append(f"{label:10s} extended estimate not offered: {no['reason']}; the baseline's is the estimate"
-                   + (f" (U95 max {u['baseline']:.3f} um; the extended fit's {u['extended']:.3f} um)" if u else ""))
+        gf = rep.get("workpiece_u95_gauge_free")
+        # (the u95_growth rule's reason says the U95 of the form already; the smooth rule's does not)
+        form = (f"; U95 of the form {gf['baseline_um']:.3f} um, the extended fit's {gf['extended_um']:.3f} um (RMS "
+                f"over {gf['targets']} {rows}, the part's shift, rotation, scale and offset removed)"
+                if gf and "u95_growth" not in str(no.get("rule", "")) else "")
+        gauge = " in the map's gauge" if kind == "planar" else ""
+        out.append(f"{label:10s} extended estimate not offered: {no['reason']}{form}; the baseline's is the estimate"
+                   + (f" (U95 max{gauge} {u['baseline']:.3f} um; the extended fit's {u['extended']:.3f} um)"
+                      if u else ""))
     elif rep.get("workpiece") and rep["findings"]:
         w = [r for r in rep["workpiece"] if isinstance(r.get("extended_u95_um"), float)
              and isinstance(r.get("baseline_u95_um"), float)]
+        gf = rep.get("workpiece_u95_gauge_free")
         if w:
-            line = (f"{label:10s} U95 max {max(r['baseline_u95_um'] for r in w):.3f} -> "
-                    f"{max(r['extended_u95_um'] for r in w):.3f} um (baseline -> extended, {len(w)} {rows})")
+            bmax, emax = max(r["baseline_u95_um"] for r in w), max(r["extended_u95_um"] for r in w)
+            if gf and not gf.get("extended_withheld"):
+                # the figure WORKPIECE_U95_GROWTH_WITHHELD judges, with its meaning (session 36: "U95 max" was the
+                # map's gauge's, read as the part's uncertainty; scenarios.discover_run.workpiece_u95_gauge_free)
+                line = (f"{label:10s} U95 of the form {gf['baseline_um']:.3f} -> {gf['extended_um']:.3f} um (baseline "
+                        f"-> extended: RMS over {gf['targets']} {rows} of each one's U95, k = 2, with the part's "
+                        f"shift, rotation, scale and offset removed, what the data decide of the part; per target in "
+                        f"the map's gauge at most {bmax:.3f} -> {emax:.3f} um)")
+            else:   # (no gauge-free figure: an ISO 230-2 test's means have no gauge; a long log's factored covariance)
+                line = (f"{label:10s} U95 max {bmax:.3f} -> {emax:.3f} um (baseline -> extended, {len(w)} {rows}"
+                        + (", in the map's gauge" if kind == "planar" else "") + ")")
             fc = rep.get("workpiece_form_change")
             if fc is not None:
                 # the form's change, the gauge removed: a shift/rotation/scale/offset of the part is no change of it

@@ -40,14 +40,16 @@ def test_workpiece_u95_before_and_after():
     # U95 max: baseline max(2.0, 1.0) = 2.0, extended max(0.75, 1.25) = 1.25; the largest change is b's
     # -3.0 - (-1.0) = -2.0 (a's is +0.5)
     w = [ln for ln in summary_lines(_report(WP)) if ln.startswith("workpiece")]
-    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets); "
+    # (without the U95 of the form in the report, the largest per-target U95, said to be in the map's gauge: session 36)
+    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets, in the map's gauge); "
                  "largest change -2.000 um at b (in the gauge: shift, rotation and scale included)"]
     # with the form's change in the report (vmt discover writes it), that is what is printed
     rep = _report(WP)
     rep["workpiece_form_change"] = {"max_abs_um": 0.04, "value_um": -0.04, "target": "a", "raw_max_abs_um": 2.0,
                                     "targets": 2, "heights": False, "what": "..."}
     w = [ln for ln in summary_lines(rep) if ln.startswith("workpiece")]
-    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets); largest change of the form"
+    assert w == ["workpiece  U95 max 2.000 -> 1.250 um (baseline -> extended, 2 targets, in the map's gauge); "
+                 "largest change of the form"
                  " -0.040 um at a (the part's shift, rotation, scale, offset removed; 2.000 um at most per target in"
                  " the gauge)"]
 
@@ -91,10 +93,10 @@ def test_a_fixed_parameter_and_an_undetermined_phase_are_said_so():
     assert f == ["finding    thermal_drift: x_offset_change_um 2.34 +- 0.5, over_h 0.924 h (fixed) (value +- U95, k = 2)",
                  "finding    periodic_axis_error: axis X, EXX_phase_rad 0.0463 +- 0.19, EYX_phase_rad n/d (U95 reaches "
                  "half the circle) (value +- U95, k = 2)"]
-    assert _magnitude_rows(rep, "planar") == [
+    assert _magnitude_rows(rep, "planar") == [r + [""] for r in [   # (the fifth column: a note, none here)
         ["thermal_drift", "x_offset_change_um", 2.34, 0.5], ["thermal_drift", "over_h", "0.924 h", "fixed"],
         ["periodic_axis_error", "axis", "X", None], ["periodic_axis_error", "EXX_phase_rad", 0.0463, 0.19],
-        ["periodic_axis_error", "EYX_phase_rad", "n/d", "reaches half the circle"]]
+        ["periodic_axis_error", "EYX_phase_rad", "n/d", "reaches half the circle"]]]
 
 
 def test_an_iso230_2_test_says_deviation_not_workpiece():

@@ -91,7 +91,11 @@ def test_discover_report_page_of_a_positioning_log(tmp_path, log):
 
     assert tabs["Diagnosis: where the structure lives"] == [[html.unescape(c) for c in r] for r in want]
     assert "dq" not in text and "approach angle" not in text and "touches" not in text   # a probe log's words
-    mags = [[f["cause"], k, html.unescape(_cell(v)), html.unescape(_cell(f["params_u95"].get(k)))]
+    # (a magnitude bounded on one side, its value null: ">= x", "not determined", as the summary says it; session 36)
+    sides = {(f["cause"], k): s for f in rep["findings"] for k, s in (f["evidence"].get("one_sided") or {}).items()}
+    mags = [[f["cause"], k, html.unescape(_cell(v)), html.unescape(_cell(f["params_u95"].get(k))), ""]
+            if (f["cause"], k) not in sides or v is not None else
+            [f["cause"], k, f">= {sides[f['cause'], k]['at_least']:.4g}", "not determined", ""]
             for f in rep["findings"] for k, v in f["params"].items()]
     assert tabs.get("Fitted magnitudes", []) == mags
     assert bool(mags) == (rep["cause"] != "none")

@@ -248,3 +248,37 @@ def test_bad_mesh_faces():
         with_rec(lambda rec: vr.log_mesh(rec, vr.ARTEFACT, np.eye(3), [[0, 1, 3]]))
     with pytest.raises(ConfigError, match="vertices_m: expected shape"):
         with_rec(lambda rec: vr.log_mesh(rec, vr.ARTEFACT, np.eye(2), [[0, 1, 1]]))
+
+
+def test_positioning_residuals_per_direction_against_time_and_target(tmp_path, rng):
+    """An ISO 230-2 test's residuals (session 36: its recording held only the findings' text): each approach
+    direction apart, against time and the target (integer µm), the outliers again; without a clock against the
+    reading order, a sequence (no time made up)."""
+    n = 20
+    t = np.arange(n) * 6.0
+    target = np.tile([0.0, 100.0, 200.0, 300.5, 400.0], 4)
+    d = np.repeat([1, -1, 1, -1], 5)
+    r = rng.normal(size=n)
+    p = tmp_path / "pos.rrd"
+    with vr.recording(p) as rec:
+        vr.log_positioning_residuals(rec, t, target, d, r, outlier_rows=[3])
+    data = read(p)
+    up = np.flatnonzero((d > 0) & (np.arange(n) != 3))
+    assert np.allclose(scalars(data, "/discover/residuals/vs_time_plus"), r[up])
+    assert np.allclose(sorted(scalars(data, "/discover/residuals/vs_target_minus")), sorted(r[d < 0]))
+    assert sorted(data["/discover/residuals/vs_target_minus"]["target_um"]) == sorted((target[d < 0] * 1000).astype(int))
+    assert np.allclose(scalars(data, "/discover/residuals/outliers_vs_target"), r[[3]])
+    assert data["/discover/residuals/vs_time_plus"]["campaign_time"] == [int(v * 1e9) for v in t[up]]
+    q = tmp_path / "order.rrd"
+    with vr.recording(q) as rec:
+        vr.log_positioning_residuals(rec, np.arange(n, dtype=float), target, d, r, clock=False, target_unit="deg")
+    data = read(q)
+    assert data["/discover/residuals/vs_time_minus"]["reading"] == list(np.flatnonzero(d < 0))
+    assert "campaign_time" not in data["/discover/residuals/vs_time_minus"]
+    assert "target_mdeg" in data["/discover/residuals/vs_target_plus"]
+    for kw, match in [({"direction": np.zeros(n)}, "direction"), ({"outlier_rows": [n]}, "out of range"),
+                      ({"target_unit": "in"}, "target_unit"), ({"t": t + 0.5, "clock": False}, "whole numbers")]:
+        args = {"t": t, "target": target, "direction": d, "residual": r, **kw}
+        with pytest.raises(VmtError, match=match):
+            with_rec(lambda rec: vr.log_positioning_residuals(rec, args.pop("t"), args.pop("target"),
+                                                              args.pop("direction"), args.pop("residual"), **args))
