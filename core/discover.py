@@ -143,7 +143,7 @@ What it does, in order, and the statistics behind each step
    again) beside the causes before it that stay, and refused
    (``judged again without ...`` in ``rejected``) or adopted again
    (``judged_again_without`` in its evidence). With
-   :data:`DROPPED_ROUND_REOPENED` (built, off) the round the dropped cause
+   :data:`DROPPED_ROUND_REOPENED` (on since session 36) the round the dropped cause
    won is decided again: the search resumes beside the causes that stay,
    every dropped cause kept out (``round_reopened_without`` in the
    evidence of what it adopts), and what it adopts meets this check too.
@@ -153,7 +153,10 @@ What it does, in order, and the statistics behind each step
    moved, the gates that depend on the ridge are made again there (the
    held-out gain against materiality, the bounds: :func:`_rechosen_gate`,
    session 21) and a cause that fails is refused, the causes after it
-   judged again without it. Then, if
+   judged again without it (with :data:`RECHOSEN_ROUND_REOPENED`, built,
+   off, the round it won is decided again as a dropped cause's is). A
+   refusal made beside a cause the final model does not hold says so in
+   ``rejected`` (:data:`REFUSALS_BESIDE_DROPPED_MARKED`). Then, if
    structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate

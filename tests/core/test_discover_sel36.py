@@ -125,3 +125,67 @@ def test_1009_without_the_reopened_round_says_not_judged_again(log_1009, monkeyp
     bump = {r["cause"]: r for r in rep["rejected"]}["local_scale_defect"]
     assert bump["made_beside_dropped"] == ["periodic_axis_error"] and bump["judged_again_later"] is False
     assert bump["reason"].endswith("; local_scale_defect not judged again without it")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# RECHOSEN_ROUND_REOPENED (built, off): the round a cause refused at its re-chosen ridge won, decided again
+# ---------------------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def log_1198():
+    return gen_a.generate("reversal", 1198)[0]
+
+
+def _refusals_beside(rep, cause):
+    return [r for r in rep["rejected"] if cause in r.get("made_beside_dropped", ())]
+
+
+def test_1198_refusals_beside_the_refused_field_judged_again(log_1198, monkeypatch):
+    """gen_a reversal 1198 (tuning, 2.11 sigma): `nonrigid` is adopted beside the lost motion at a ridge of 0.1 and,
+    chosen again in the final model, its ridge is the grid's edge where it gains nothing held out: refused
+    (session 21's gate). lobing_per_setup and local_scale_defect were refused in the round after it, beside the field.
+    Off: only causes adopted after the field are judged again, so those two refusals are never judged again (the
+    marking says so). On: the round is reopened beside the lost motion, the field kept out; both are judged again
+    there and refused again (nothing adopted), so the reading is the same: `reversal`, hedged."""
+    monkeypatch.setattr(D, "RECHOSEN_ROUND_REOPENED", False)
+    off = discovered(log_1198).to_report()
+    assert [f["cause"] for f in off["findings"]] == ["reversal"]
+    assert any(r["cause"] == "nonrigid" and r["reason"].startswith("its ridge chosen again in the final model")
+               for r in off["rejected"])
+    stale = _refusals_beside(off, "nonrigid")
+    assert {r["cause"] for r in stale} >= {"lobing_per_setup", "local_scale_defect"}
+    assert not any(r["judged_again_later"] for r in stale)
+    assert all("(refused at its ridge chosen again in the final model)" in r["reason"] for r in stale)
+
+    monkeypatch.setattr(D, "RECHOSEN_ROUND_REOPENED", True)
+    on = discovered(log_1198).to_report()
+    assert [f["cause"] for f in on["findings"]] == ["reversal"]
+    assert on["findings"][0]["evidence"]["confidence"] == off["findings"][0]["evidence"]["confidence"]
+    stale = _refusals_beside(on, "nonrigid")
+    assert {r["cause"] for r in stale} >= {"lobing_per_setup", "local_scale_defect"}
+    assert all(r["judged_again_later"] for r in stale)
+    assert not any("round_reopened_without" in f["evidence"] for f in on["findings"])
+    assert [w["extended_um"] for w in on["workpiece"]] == [w["extended_um"] for w in off["workpiece"]]
+
+
+def test_reopened_round_after_a_refused_field_meets_the_rival_check(monkeypatch):
+    """A constructed case (the gate forced: ``_rechosen_gate`` made to refuse every field whose ridge moved) on gen_a
+    nonrigid 1119 (tuning), where the field won round 1 beside nothing. On: the round is reopened without the field;
+    part_change wins it and is then judged by the rival check as every adopted cause is (``rival_checked``), which
+    drops it (one wall moving as a whole, the other features with it), and the round is reopened once more (nothing
+    passes): ``unexplained``. The refusals made beside the dropped part_change are marked. Off: the field's refusal
+    ends the search; part_change is never adopted nor judged by the rival check. Without the rival check after the
+    reopened round, part_change would be the report's name (a wrong one: the truth is a non-rigid coupling)."""
+    monkeypatch.setattr(D, "_rechosen_gate", lambda tm, *a, **k: "refused for the test")
+    log = gen_a.generate("nonrigid", 1119)[0]
+    monkeypatch.setattr(D, "RECHOSEN_ROUND_REOPENED", False)
+    off = discovered(log).to_report()
+    assert [f["cause"] for f in off["findings"]] == ["unexplained"]
+    assert not any(r["cause"] == "part_change" for r in off["rejected"])
+
+    monkeypatch.setattr(D, "RECHOSEN_ROUND_REOPENED", True)
+    on = discovered(log).to_report()
+    assert [f["cause"] for f in on["findings"]] == ["unexplained"]
+    drop = [r for r in on["rejected"] if r["cause"] == "part_change"]
+    assert len(drop) == 1 and drop[0]["reason"].startswith("not the feature's own change")
+    beside = _refusals_beside(on, "part_change")
+    assert beside and all(r["judged_again_later"] and "(dropped by the rival check)" in r["reason"] for r in beside)
