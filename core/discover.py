@@ -143,7 +143,7 @@ What it does, in order, and the statistics behind each step
    again) beside the causes before it that stay, and refused
    (``judged again without ...`` in ``rejected``) or adopted again
    (``judged_again_without`` in its evidence). With
-   :data:`DROPPED_ROUND_REOPENED` (built, off) the round the dropped cause
+   :data:`DROPPED_ROUND_REOPENED` (on since session 36) the round the dropped cause
    won is decided again: the search resumes beside the causes that stay,
    every dropped cause kept out (``round_reopened_without`` in the
    evidence of what it adopts), and what it adopts meets this check too.
@@ -153,7 +153,10 @@ What it does, in order, and the statistics behind each step
    moved, the gates that depend on the ridge are made again there (the
    held-out gain against materiality, the bounds: :func:`_rechosen_gate`,
    session 21) and a cause that fails is refused, the causes after it
-   judged again without it. Then, if
+   judged again without it (with :data:`RECHOSEN_ROUND_REOPENED`, built,
+   off, the round it won is decided again as a dropped cause's is). A
+   refusal made beside a cause the final model does not hold says so in
+   ``rejected`` (:data:`REFUSALS_BESIDE_DROPPED_MARKED`). Then, if
    structure remains (diagnosis, lack of fit or CV gap
    significant and material), the cause list gains ``unexplained`` with
    the diagnosis; a penalised smooth term in the strongest covariate
@@ -3334,6 +3337,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                  for k, v in scans.items()}
     n_causes = max(sum(1 for c in catalogue if scans[c.name][0]), 1)
     rejected: list[dict] = []
+    # every judgement of adoption as (cause, the named causes beside it), and how each named cause that left the
+    # model went: a refusal made beside one the final model does not hold is marked (REFUSALS_BESIDE_DROPPED_MARKED)
+    judged: list[tuple] = []
+    gone_how: dict[str, str] = {}
+
+    def named_in(ts) -> tuple:
+        return tuple(t.cause for t in ts if not t.unnamed)
     # bumps refused by the all-touch support count alone (OUTLIERS_UNDER_SUPPORT_REFUSED_BUMP): their reach
     refused_bumps: list[dict] = []
     # causes refused in a search round as confounded with the model (their magnitudes not determined, their
@@ -3383,6 +3393,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 tick()
                 if not scans[cause.name][0]:
                     continue
+                judged.append((cause.name, named_in(terms)))
                 if cause.name in waive:
                     token = _COUNTER_WAIVED.set(waive.pop(cause.name))
                     try:
@@ -3399,7 +3410,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     if "support_refused_bump" in cand:
                         refused_bumps.append(cand["support_refused_bump"])
                     if cand.get("significant"):
-                        rejected.append({"cause": cause.name, "reason": cand["reason"]})
+                        rejected.append(_Refusal({"cause": cause.name, "reason": cand["reason"]},
+                                                 beside=named_in(terms), at=len(judged)))
                         if cand.get("form_refused") == "confounded":
                             confounded.add(cause.name)
                     continue
@@ -3470,6 +3482,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         # set-ups (_explains_set_aside: a bump its form follows only in part
         # leaves as many), the "outliers" it explains were its structure
         Qa, fa, sa = model(all_rows, [])
+        t1 = terms
         seen2 = []  # (its first diagnosis is of every row, rows=None: not one the others can take)
         t2, r2, s2, f2, q2 = search(all_rows, sa, fa, Qa, diagnosis(sa, bl.covariates), fa.mse(y), seen2)
         if t2 and (len(r2) > len(rows) or per_setup and _explains_set_aside(Qall, y, all_rows, rows, t2, events, r2)) \
@@ -3479,6 +3492,8 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
             # a cause explains some of them: they were its structure
             terms, rows, st, folds, Qb = t2, r2, s2, f2, q2
         seen += seen2
+        for tm in (t1 if terms is t2 else t2):  # (the search not taken: a refusal beside its causes is marked)
+            gone_how.setdefault(tm.cause, "adopted in another search of this run, which the report does not take")
     if PART_CHANGE_OUTLIER_LOOK and len(rows) < N and not any(tm.cause == "part_change" for tm in terms) \
             and "part_change" in scans and scans["part_change"][0] and bl.kind == "planar":
         look = _part_change_outlier_look(bl.A, y, rows, _stack(terms, all_rows), bl.data.touches.feature,
@@ -3501,8 +3516,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 for tm in t3:
                     if tm.cause == "part_change":
                         tm.evidence["outlier_look"] = {k: look[k] for k in ("feature", "rows", "p", "trials")}
-                terms, rows, st, folds, Qb = t3, r3, s3, f3, q3
+                t_prev, terms, rows, st, folds, Qb = terms, t3, r3, s3, f3, q3
                 seen += seen3
+            for tm in (t_prev if terms is t3 else t3):  # (likewise)
+                gone_how.setdefault(tm.cause, "adopted in another search of this run, which the report does not take")
     tick()
 
     by_name = {c.name: c for c in catalogue}
@@ -3538,10 +3555,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         diag_ = diagnosis(s_, smooth_covs if kept else bl.covariates, rows_)
         seen.append((s_, diag_))
         cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
+        judged.append((old.cause, named_in(kept)))
         cand = evaluate(by_name[old.cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
         if cand.get("reason"):
-            rejected.append({"cause": old.cause, "reason": f"judged again without {gone.cause} (adopted before it, "
-                             f"then dropped): {cand['reason']}"})
+            rejected.append(_Refusal({"cause": old.cause, "reason": f"judged again without {gone.cause} (adopted "
+                                      f"before it, then dropped): {cand['reason']}"},
+                                     beside=named_in(kept), at=len(judged)))
+            gone_how[old.cause] = f"refused when judged again without {gone.cause}"
             return None
         cand["term"].evidence["judged_again_without"] = gone.cause
         return cand["term"]
@@ -3561,6 +3581,37 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         for tm in t_[len(kept):]:
             tm.evidence["round_reopened_without"] = gone
         return t_, r_, s_, f_, q_
+
+    def rival_checked(terms, first: int, rows_, st_, folds_, Qb_, out: list) -> tuple:
+        """The terms from ``first`` on (adopted in a round reopened after :func:`_rechosen_gate`'s refusal of a
+        cause, :data:`RECHOSEN_ROUND_REOPENED`) judged by the rival check as step 5 judges every term: one that fails
+        is dropped and said so, the causes adopted after it judged again without it, and (with
+        :data:`DROPPED_ROUND_REOPENED`) the round reopened again, every dropped cause and ``out`` kept out; until
+        none fails. Not the check's put-back of outliers (the reopening runs only where none were put back).
+        ``(terms, rows, state, folds, basis)``."""
+        changed = True
+        while changed:
+            changed = False
+            for tm in terms[first:]:
+                share = _rival_share(bl, tm, terms, Qb_, y, rows_, noise_sigma(st_), settings, bases, scan_trials)
+                tm.evidence.update(share)
+                if share["kept"]:
+                    continue
+                at = next(i for i, t in enumerate(terms) if t is tm)
+                later, terms = terms[at + 1:], terms[:at]
+                dropped.append(tm)
+                demoted.append({"cause": tm.cause, **share})
+                rejected.append(_Refusal({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate,
+                                                                                         settings)},
+                                         beside=named_in(terms + later), at=len(judged)))
+                gone_how[tm.cause] = "dropped by the rival check"
+                judge_later_again(later, terms, rows_, tm, False, None)
+                Qb_, folds_, st_ = model(rows_, terms)
+                if DROPPED_ROUND_REOPENED and len(terms) < settings.max_findings:
+                    terms, rows_, st_, folds_, Qb_ = round_reopened(terms, dropped + out)
+                changed = True
+                break
+        return terms, rows_, st_, folds_, Qb_
 
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
@@ -3604,7 +3655,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     put_back, put_back_by = False, None
                     undone = True
                 demoted.append({"cause": tm.cause, **share})
-                rejected.append({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)})
+                rejected.append(_Refusal({"cause": tm.cause, "reason": _demotion_reason(share, tm.covariate, settings)},
+                                         beside=named_in(terms + later), at=len(judged)))
+                gone_how[tm.cause] = "dropped by the rival check"
                 # the causes adopted after it were searched with it in the model: each is judged again, in the
                 # order of adoption, beside the causes before it that stay (section 4's "a search built on a
                 # dropped cause")
@@ -3641,7 +3694,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 # and are judged again without it (as after the rival check's drop)
                 at = next(i for i, t in enumerate(terms) if t is tm)
                 later, terms = terms[at + 1:], terms[:at]
-                rejected.append({"cause": tm.cause, "reason": why})
+                rejected.append(_Refusal({"cause": tm.cause, "reason": why}, beside=named_in(terms + later),
+                                         at=len(judged)))
+                gone_how[tm.cause] = "refused at its ridge chosen again in the final model"
                 if put_back_by is not None and put_back_by.cause == tm.cause:  # (its put-back undone with it)
                     put_back, put_back_by = False, None
                 # (a later cause's put-back goes with it, or to its new term: the rival check's rule; the session
@@ -3651,6 +3706,13 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     rows = rows_screened(terms)
                     rows_b = judge_rows_again(rows)
                 Qb, folds, st = model(rows, terms)
+                if RECHOSEN_ROUND_REOPENED and not put_back and len(terms) < settings.max_findings:
+                    # the round the refused cause won decided again without it (as DROPPED_ROUND_REOPENED after the
+                    # rival check's drop): what it adopts meets the rival check
+                    first = len(terms)
+                    terms, rows, st, folds, Qb = round_reopened(terms, dropped + [tm])
+                    terms, rows, st, folds, Qb = rival_checked(terms, first, rows, st, folds, Qb, [tm])
+                    rows_b = judge_rows_again(rows)
                 break  # (one refusal: a second penalised named cause is not in the catalogue)
     tick()
 
@@ -3707,8 +3769,10 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                     terms.remove(tm)
                     demoted.append({"cause": tm.cause, "redundant_with": smooth.covariate,
                                     "cv_gain_over_unnamed_um2": (cv_wo - cv_s) / UM ** 2})
-                    rejected.append({"cause": tm.cause, "reason": "no material gain once the unnamed structure in "
-                                     f"{smooth.covariate} is modelled"})
+                    rejected.append(_Refusal({"cause": tm.cause, "reason": "no material gain once the unnamed "
+                                              f"structure in {smooth.covariate} is modelled"},
+                                             beside=named_in(rest), at=len(judged)))
+                    gone_how[tm.cause] = f"dropped as redundant with the unnamed structure in {smooth.covariate}"
             terms.append(smooth)
             # outliers judged against the model with the smooth term
             X = np.hstack([bl.A, _stack(terms, all_rows)])
@@ -3952,7 +4016,9 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         outlier_rows=tuple(int(bl.rows[i]) for i in outliers), residuals_baseline_um=st0.r / UM,
         residuals_extended_um=res_e / UM, conventions=tuple(conv), workpiece_identifiable=ident,
         G_baseline_m=Gb, G_extended_m=Ge, cov_G_baseline=cGb, cov_G_extended=cGe,
-        structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(rejected),
+        structure={"baseline": structure_b, "extended": structure_e}, rejected=tuple(
+            _refusals_marked(rejected, set(named_in(terms)), gone_how, judged) if REFUSALS_BESIDE_DROPPED_MARKED
+            else (dict(r) for r in rejected)),
         cv_rms_ratio_95=_ratio_interval(held_b, held_e, float(np.sqrt(cv_e / cv_b)) if cv_b > 0 else float("nan")),
         workpiece_not_offered=unearned, G_extended_fit_m=Ge_fit, cov_G_extended_fit=cGe_fit)
 
@@ -7038,6 +7104,60 @@ DROPPED_ROUND_REOPENED = True
 #: 1125 (9.6x among 6) and gen_b 1139 kept named. Off: built, measured, for the lead (docs/discovery-studies.md,
 #: "Session 35: the round a dropped cause won, decided again").
 CONFOUNDED_SELECTION_COUNTED = False
+#: Whether a refusal in ``rejected`` made beside a named cause the final model does not hold is marked so (True;
+#: :func:`_refusals_marked`): its reason gains "made beside X (how X went), which the final model does not hold" and
+#: whether the refused cause was judged again later beside a model without X; the entry gains
+#: ``made_beside_dropped`` (those causes' names) and ``judged_again_later``. A refusal is a judgement beside the
+#: model of its moment (a round's adopted causes, the causes kept when judged again, the terms beside a dropped or
+#: refused one); where a cause of that model is later dropped by the rival check, refused when judged again,
+#: refused at its ridge chosen again, made redundant by the unnamed smooth or adopted in a search the report does
+#: not take, the reason referred to a model that no longer stands (gen_a local_scale_defect 1009: the bump refused
+#: at -4.62 um^2 held out beside the ripple the rival check then dropped; :data:`DROPPED_ROUND_REOPENED` judges it
+#: again and names it, and the report still said "refused because" beside the ripple). Bookkeeping only: no
+#: cause, confidence or workpiece moves (the refusal's text changes only in the report's ``rejected``, after every
+#: rule that reads it). Session 36 (sel36).
+REFUSALS_BESIDE_DROPPED_MARKED = True
+#: Whether a penalised named cause :func:`_rechosen_gate` refuses (its ridge chosen again in the final model, a gate
+#: of its adoption failed there) leaves the round it won open, as :data:`DROPPED_ROUND_REOPENED` leaves a dropped
+#: cause's (True: :func:`discover_baseline`'s ``round_reopened`` beside the causes that stay, the refused cause and
+#: every dropped one kept out, what it adopts judged by the rival check, ``rival_checked``). Without it only the
+#: causes adopted after the refused one are judged again; a cause refused in a round beside it (or never reached,
+#: the rounds spent) is not. Not where outliers were put back by a cause that stays. Session 36 (sel36); off: built,
+#: measured, for the lead (docs/discovery.md, "Session 36: ...").
+RECHOSEN_ROUND_REOPENED = False
+
+
+class _Refusal(dict):
+    """A ``rejected`` entry with what it was judged beside: ``beside``, the named causes in the model then;
+    ``at``, the count of judgements of adoption made up to and including its own (:func:`_refusals_marked`).
+    Neither is in the report (the entry leaves :func:`discover_baseline` a plain dict)."""
+
+    def __init__(self, *args, beside=(), at=0, **kw):
+        super().__init__(*args, **kw)
+        self.beside, self.at = tuple(beside), int(at)
+
+
+def _refusals_marked(rejected: list, final: set, gone_how: dict, judged: list) -> list:
+    """``rejected`` as plain dicts, each refusal made beside a named cause not in ``final`` (the final model's named
+    causes) marked (:data:`REFUSALS_BESIDE_DROPPED_MARKED`): ``made_beside_dropped`` (those causes, in the order of
+    the model), ``judged_again_later`` (the refused cause is in the final model, or was judged again, by
+    ``judged``'s record ``(cause, named causes beside)`` of every judgement of adoption, after this refusal beside a
+    model holding none of them), and the reason's words with ``gone_how``'s account of how each went."""
+    out = []
+    for r in rejected:
+        stale = [c for c in dict.fromkeys(getattr(r, "beside", ())) if c not in final]
+        if not stale:
+            out.append(dict(r))
+            continue
+        at = getattr(r, "at", len(judged))
+        again = r["cause"] in final or any(c == r["cause"] and not set(b) & set(stale) for c, b in judged[at:])
+        words = ", ".join(f"{c} ({gone_how.get(c, 'not in the final model')})" for c in stale)
+        them = "it" if len(stale) == 1 else "them"
+        out.append({**r, "reason": f"{r['reason']}; made beside {words}, which the final model does not hold"
+                    + (f"; {r['cause']} judged again later without {them}" if again else
+                       f"; {r['cause']} not judged again without {them}"),
+                    "made_beside_dropped": stale, "judged_again_later": bool(again)})
+    return out
 
 
 def _layout_text(info: dict) -> str:

@@ -262,6 +262,14 @@ Refreshed for step 8's alternatives gate as a two-way test (session 34, ``core.d
 other: the demo's probe_lobing, the simulator's lobing_per_setup 1000, gen_a probe_lobing 302 and nonrigid 2; seven
 entries); no confidence, reason or other leaf moved (checked equal with the key stripped, then the key alone added).
 ``OUTLIER_STRUCTURE_REJUDGED`` fired on none of the sixteen.
+
+Refreshed for session 36: ``rejected`` of two campaigns alone (/tmp/sel36/refresh.py, that key's value replaced;
+every other leaf as stored, and the test passes on every other campaign unrefreshed). gen_a nonrigid 2 gains
+local_scale_defect's refusal "not confined ... not a place of its own" (``INSIDE_SMOOTH_REFUSED``, switched on
+before blind set F); gen_b stylus_pickup 501 gains part_change's refusal in the round reopened without the dropped
+thermal_drift (``DROPPED_ROUND_REOPENED``, likewise), and its four refusals made beside that thermal_drift are
+marked so (``REFUSALS_BESIDE_DROPPED_MARKED``: the reason's end, ``made_beside_dropped``, ``judged_again_later``).
+No finding, confidence or workpiece leaf moved.
 """
 
 from __future__ import annotations
