@@ -36,7 +36,10 @@ def test_gen_b_thermal_drift_1254_named_on_its_warm_up(monkeypatch):
     the set-up's smooth), and thermal_drift, judged again on its form of smallest p, is refused (held-out gain
     -0.049 um^2): `unexplained`. Its warm-up (k = 4, held-out mean square 0.407 um^2 against c_drift's 0.420, the
     margin 0.0116) takes the round with the rule: thermal_drift, named (ambiguous); the workpiece 0.28 um from the
-    truth (U95 0.53, the baseline's 0.21)."""
+    truth (U95 0.53, the baseline's 0.21). Since session 36 the round c_drift won is left open once the rival check
+    drops it (DROPPED_ROUND_REOPENED), which names thermal_drift here without this rule too: the rule's own
+    mechanism is tested with that one off, and the two together asserted last."""
+    monkeypatch.setattr(D, "DROPPED_ROUND_REOPENED", False)
     on = _report(monkeypatch, None, "thermal_drift", 1254)
     f = on["findings"][0]
     assert f["cause"] == "thermal_drift", on["rejected"]
@@ -49,6 +52,8 @@ def test_gen_b_thermal_drift_1254_named_on_its_warm_up(monkeypatch):
     assert not any(f_.get("evidence", {}).get("entrant_form_held_out") for f_ in off["findings"])
     assert any(r["cause"] == "thermal_drift" and r["reason"].startswith("cross-validated gain")
                for r in off["rejected"]), off["rejected"]
+    monkeypatch.setattr(D, "DROPPED_ROUND_REOPENED", True)
+    assert _report(monkeypatch, False, "thermal_drift", 1254)["findings"][0]["cause"] == "thermal_drift"
 
 
 def test_same_covariate_rule_is_on():
