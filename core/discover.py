@@ -11593,7 +11593,7 @@ SMOOTH_WORKPIECE_EARNED = False
 #: 1.04 -> 0.65 um) and 2.25 (gen_a feed_latency 1003, 3.49 -> 0.47 um); no extended workpiece that mends the
 #: baseline's is withheld, readings and confidence never move (the rule acts after them): docs/discovery-studies.md,
 #: "Session 35: an extended workpiece offered only when earned". On since session 35 (the lead, on these tuning figures;
-#: the blind set E read with it after: docs/discovery.md, "The last blind check").
+#: the blind set E read with it after: docs/discovery-studies.md, "The blind check of session 35").
 WORKPIECE_U95_GROWTH_WITHHELD = True
 #: :data:`WORKPIECE_U95_GROWTH_WITHHELD`'s factor.
 WORKPIECE_U95_GROWTH_MAX = 3.0

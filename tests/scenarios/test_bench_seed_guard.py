@@ -51,9 +51,9 @@ def test_tuning_and_bench_seeds_pass(blind, hidden):
 
 
 def test_the_table_holds_the_blind_ranges():
-    """Known answers from the blind checks' record (docs/discovery.md, "The last blind check": set E gen_a/gen_b
-    10900-11109, gen_c 7000-7109, the simulator 8100-8209; set N gen_a/gen_b 11300-11379, gen_c 7300-7379, the
-    simulator 8300-8379): each of its seeds is inside the table; the tuning seeds are outside."""
+    """Known answers from the blind checks' record (docs/discovery-studies.md, "The blind check of session 35":
+    set E gen_a/gen_b 10900-11109, gen_c 7000-7109, the simulator 8100-8209; set N gen_a/gen_b 11300-11379, gen_c
+    7300-7379, the simulator 8300-8379): each of its seeds is inside the table; the tuning seeds are outside."""
     def inside(g, s):
         lo, hi = S.BLIND_CHECK_SEEDS[g]
         return s >= lo and (hi is None or s <= hi)
