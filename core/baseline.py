@@ -1036,7 +1036,8 @@ VOLUMETRIC_FOLDS = 4
 VOLUMETRIC_REDUCED_AT_SOLUTION = True
 
 
-def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: dict | None = None) -> Baseline:
+def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: dict | None = None, *,
+               sigma_probe_m: float | None = None, u_cal_m=None, cal_map=None) -> Baseline:
     """The volumetric MFB baseline: the first-order problem (2)/(3) of :mod:`core.volumetric` with its ISO gauge.
 
     Parameters
@@ -1045,6 +1046,18 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     chain, nodes, rotary_points_R_m : as :func:`core.volumetric.design`
     times_s : dict measurement name -> time of the measurement (s), optional
         Without it, the measurements' order (one unit each).
+    sigma_probe_m : float, optional
+        The probe's declared repeatability (k = 1, along the approach), m.
+    u_cal_m : (N, 3) float, optional
+        The bar's declared calibration standard uncertainty per hole and
+        direction of A (its certificate's U / 2), m; with ``sigma_probe_m``
+        and :data:`VOLUMETRIC_BAR_CALIBRATION_NOISE`, the rows' noise
+        covariance holds the bar's deviation from its calibration
+        (:func:`_bar_calibration_columns`, :func:`_noise_whitening`).
+    cal_map : (3N, 3N) float, optional
+        How the calibration's independent errors reach the points
+        (:func:`core.mfb.calibration_map`); None: one independent error per
+        hole and direction.
 
     The rows are the points' deviations, one per W component; the folds of
     the cross-validation are the holes (:data:`VOLUMETRIC_FOLDS`); the
@@ -1063,7 +1076,9 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     (2)'s, its null space exactly the gauge's.
     """
     from . import volumetric as vol
+    from .mfb import MFB
 
+    bar_u = _bar_noise_inputs(sigma_probe_m, u_cal_m, cal_map, MFB.n_holes)  # (refused before any work)
     meas = list(meas)
     if VOLUMETRIC_REDUCED_AT_SOLUTION:
         d, theta_x = vol.reduced_design(meas, chain, nodes, rotary_points_R_m)
@@ -1073,8 +1088,6 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
     places = list(dict.fromkeys(m.placement for m in meas))
     styli = list(dict.fromkeys(tuple(np.round(np.asarray(m.J_m, float), 6)) for m in meas))
     comp, mi, pl, st, t_s, s, sb, gp, O, touch, fold, point, xb = [], [], [], [], [], [], [], [], [], [], [], [], []
-    from .mfb import MFB
-
     half_bar = (MFB.n_holes - 1) / 2
     row = 0
     for i, m in enumerate(meas):
@@ -1120,7 +1133,9 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
                           tuple(",".join(f"{v * 1e3:g}" for v in J) for J in styli), np.array(pl)[sel],
                           np.array(st)[sel], np.array(t_s, float)[sel], np.array(s)[sel], np.array(sb, float)[sel],
                           np.array(gp)[sel], np.array(O)[sel], touch, np.array(xb, float)[sel])
-    W = _point_whitening(touch, n, np.array(point)[sel])
+    L = (_bar_calibration_columns(meas, sel, *bar_u) if bar_u is not None else None)
+    W = (_point_whitening(touch, n, np.array(point)[sel]) if L is None
+         else _noise_whitening(touch, n, np.array(point)[sel], L))
     modes = np.eye(3)[comp]
     allm = (0, 1, 2)
     covs = [Covariate("placement", data.placement, "categorical", 0, allm, "the placement", "time"),
@@ -1146,10 +1161,17 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
         estimand_ids=tuple(d.names[i] for i in est), geometry=None, replicate=np.full(n, -1),
         covariates=tuple(covs), modes=modes, mode_names=VOLUMETRIC_MODES, rows=sel, data=data,
         identifiable=not d.unseen.shape[1], why="" if not d.unseen.shape[1] else "the plan leaves combinations unseen",
-        conventions=tuple(d.gauge) + ("rows whitened by each point's noise covariance (its touches' gain)",)
+        conventions=tuple(d.gauge) + (("rows whitened by each point's noise covariance (its touches' gain)",)
+                                      if L is None else
+                                      ("rows whitened by the noise covariance of the probing (each point's touches' "
+                                       "gain, the declared repeatability) and of the bar's declared calibration "
+                                       "(its deviation per hole, the same in every placement)",))
         + (("observations reduced to first order at the exact model's solution (placements turned: second order)",)
            if theta_x is not None else ()),
-        info={"placements": len(places), "measurements": len(meas), "cv": False},
+        info={"placements": len(places), "measurements": len(meas), "cv": False}
+        | ({"noise_model": {"sigma_probe_um": float(sigma_probe_m) * 1e6,
+                            "u_cal_um_max": float(np.max(u_cal_m)) * 1e6, "bar_calibration": True}}
+           if L is not None else {}),
         estimand_label="error tables")
 
 
@@ -1164,6 +1186,106 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
 #: placement's direction: 7 of 44 plain campaigns `none`/`outlier` -> `unexplained` (docs/discovery-studies.md, "Session 30:
 #: MFB"). Session 30.
 VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT = False
+
+
+#: Whether the volumetric (MFB) baseline's noise model holds the bar's declared calibration uncertainty when its
+#: builder is given it (``u_cal_m`` with ``sigma_probe_m``: :func:`volumetric`). The bar's true form differs from
+#: its calibration by a draw of that uncertainty (0.2-0.35 um per hole and direction on the simulated bar, 2-3 x the
+#: 0.125 um touch noise); that draw is the same in every placement, so the residuals of the holes follow the
+#: position along the bar, and discovery, whose rows were whitened by the touch noise alone, read it as the
+#: machine's structure (session 35: 3 of 28 effect-free realistic-bar campaigns `unexplained`/`outlier?`; the
+#: diagnosis "residuals follow the position along the bar: 0.13 um, p < 1e-6" on simulator 4007). A metrologist
+#: declares the artefact's calibration uncertainty; residual structure consistent with it is not a cause. On, the
+#: rows are whitened by the probing noise and the bar's calibration covariance together (generalised least
+#: squares with the bar's deviation a random field of declared covariance: :func:`_noise_whitening`). Off: the
+#: touch noise alone (sessions 13-35), whatever the builder is given. Session 36 (mfb36, docs/discovery.md
+#: "Session 36: MFB discovery judged with the bar's declared calibration").
+VOLUMETRIC_BAR_CALIBRATION_NOISE = True
+
+
+def _bar_noise_inputs(sigma_probe_m, u_cal_m, cal_map, n_holes: int):
+    """(sigma_probe_m, u_cal (N, 3), cal_map or None) when the bar's calibration enters the noise model, else None;
+    a bad input refused in one line (ConfigError)."""
+    if u_cal_m is None and sigma_probe_m is None and cal_map is None:
+        return None
+    if u_cal_m is None or sigma_probe_m is None:
+        raise ConfigError("volumetric: the bar's calibration uncertainty needs both u_cal_m and sigma_probe_m "
+                          f"(got u_cal_m {'None' if u_cal_m is None else 'given'}, sigma_probe_m {sigma_probe_m!r})")
+    sig = float(sigma_probe_m)
+    if not (np.isfinite(sig) and sig > 0):
+        raise ConfigError(f"volumetric: sigma_probe_m must be > 0 (the probe's repeatability, m), "
+                          f"got {sigma_probe_m!r}")
+    u = np.asarray(u_cal_m, float)
+    if u.shape != (n_holes, 3) or not np.all(np.isfinite(u)) or np.any(u < 0):
+        raise ConfigError(f"volumetric: u_cal_m must be finite values >= 0 of shape ({n_holes}, 3), got {u.shape}")
+    M = None
+    if cal_map is not None:
+        M = np.asarray(cal_map, float)
+        if M.shape != (3 * n_holes, 3 * n_holes) or not np.all(np.isfinite(M)):
+            raise ConfigError(f"volumetric: cal_map must be a finite ({3 * n_holes}, {3 * n_holes}) matrix, "
+                              f"got {M.shape}")
+    if not VOLUMETRIC_BAR_CALIBRATION_NOISE or not np.any(u > 0):
+        return None
+    return sig, u, M
+
+
+def _bar_calibration_columns(meas, sel, sigma_probe_m: float, u_cal: np.ndarray, cal_map) -> np.ndarray:
+    """(n, 3N) how the bar's calibration errors reach the baseline's rows, in units of the probing sigma.
+
+    A hole's true position in the bar frame A differs from its calibrated one
+    (``Measurement.O_A``) by ``delta_h``, the same in every placement; its
+    point then reads ``R_WA delta_h`` off in W (first order, at the nominal
+    pose; the mistake-proofing holes without their z_A component, as the
+    design's rows). ``delta = cal_map @ (u_cal * n)``, n independent standard
+    normal (:func:`core.mfb.calibration_map`). Columns scaled by
+    ``1 / sigma_probe_m``: ``L L^T`` beside the touches' gain ``G G^T`` is the
+    rows' noise covariance over the probing variance."""
+    N = u_cal.shape[0]
+    rows = []
+    for m in meas:
+        T = np.asarray(m.T_W_A, float)
+        R = T[:3, :3]
+        zA = R[:, 2]
+        Pz = np.eye(3) - np.outer(zA, zA)
+        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
+        blk = np.zeros((3 * len(m.holes), 3 * N))
+        for a, h in enumerate(m.holes):
+            blk[3 * a:3 * a + 3, 3 * (int(h) - 1):3 * int(h)] = Pz @ R if off[a] else R
+        rows.append(blk)
+    Bm = np.vstack(rows)[sel]
+    if cal_map is not None:
+        Bm = Bm @ cal_map
+    return Bm * (u_cal.ravel() / sigma_probe_m)[None, :]
+
+
+def _noise_whitening(touch_cols, n: int, point: np.ndarray, L: np.ndarray) -> np.ndarray:
+    """(n, n) inverse square root of the rows' noise covariance: the probing noise of each point (its touches'
+    gain, as :func:`_point_whitening`) plus the bar's calibration ``L L^T`` (:func:`_bar_calibration_columns`,
+    in units of the probing variance), which couples the rows of one hole in every placement.
+
+    The whitened rows are independent, of one variance (the probing noise's, scaled as
+    :func:`_point_whitening` scales it) when the bar differs from its calibration as declared: generalised
+    least squares with the bar's deviation a nuisance of known prior, the rows' sum of squares of the
+    baseline and of every term beside it the chi-square the engine's tests take. The matrix is the symmetric
+    inverse square root (each whitened row stays its own row's, less what the other placements of its hole
+    say of the bar). Rows without touches carry the probing variance ``c^2`` (``c`` the points' mean gain)."""
+    S = np.zeros((n, n))
+    has = np.zeros(n, bool)
+    scale = []
+    for rows, GW, _ in touch_cols:
+        for p in np.unique(point[rows]):
+            r = rows[point[rows] == p]
+            G = GW[point[rows] == p]
+            S[np.ix_(r, r)] = G @ G.T
+            has[r] = True
+            scale.append(np.mean(np.diag(G @ G.T)))
+    c = np.sqrt(np.mean(scale)) if scale else 1.0
+    lone = np.flatnonzero(~has)
+    S[lone, lone] = 1.0 / c ** 2
+    S += L @ L.T
+    w, V = np.linalg.eigh(S)
+    ok = w > 1e-8 * max(w.max(), 1e-300)
+    return c * ((V[:, ok] / np.sqrt(w[ok])) @ V[:, ok].T + V[:, ~ok] @ V[:, ~ok].T)
 
 
 def _point_whitening(touch_cols, n: int, point: np.ndarray) -> np.ndarray:

@@ -914,9 +914,10 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error:
     offset J in mm as discovery's report names the styli).
 
     ``bar_cal_error`` as :func:`scenarios.mfb.run`'s: on (the default), the
-    bar differs from its calibration by a draw of 0.2-0.35 um per hole, which
-    discovery's noise (the residuals') then holds; off, the bar is as
-    calibrated (the other draws of the seed unchanged).
+    bar differs from its calibration by a draw of 0.2-0.35 um per hole (its
+    declared uncertainty, which :func:`mfb_baseline` gives discovery's noise
+    model: :func:`mfb_declared_noise`); off, the bar is as calibrated (the
+    other draws of the seed unchanged).
 
     Returns
     -------
@@ -988,16 +989,75 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error:
     return res, times, params
 
 
-def mfb_baseline(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True):
+#: Simulated MFB campaigns (:func:`hidden_mfb`) kept per (cause, seed, plan, bar): a test that reads a campaign's
+#: measurements (tests/scenarios/test_mfb_discovered.py, :func:`mfb_bar_miscalibrated`) and the discovery of the same
+#: campaign (:func:`mfb_baseline`) simulate it once (3.5 s CPU).
+MFB_CAMPAIGN_CACHE = 4
+
+
+@lru_cache(maxsize=MFB_CAMPAIGN_CACHE)
+def mfb_campaign(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True):
+    """:func:`hidden_mfb`'s (result, times, params), simulated once per key (:data:`MFB_CAMPAIGN_CACHE`); callers
+    read them and do not change them."""
+    return hidden_mfb(cause, int(seed), name=name, bar_cal_error=bool(bar_cal_error))
+
+
+def mfb_declared_noise(res, bar_u_declared: bool) -> dict:
+    """The noise inputs a metrologist declares for :func:`hidden_mfb`'s campaign ``res``, as keywords of
+    :func:`core.baseline.volumetric`: the probe's repeatability (the run's ``noise_um``, k = 1) and, when
+    ``bar_u_declared``, the bar's calibration uncertainty (:data:`scenarios.mfb.U_CAL_UM` per hole, the
+    certificate :func:`scenarios.mfb.run` declares and draws the realistic bar from) with
+    :func:`core.mfb.calibration_map`. Without it: none (the touch noise alone, as before session 36)."""
+    from core.mfb import calibration_map
+    from scenarios.mfb import U_CAL_UM
+
+    if not bar_u_declared:
+        return {}
+    return {"sigma_probe_m": float(res.doc["noise_um"]) * UM,
+            "u_cal_m": np.tile(np.asarray(U_CAL_UM, float) * UM, (12, 1)), "cal_map": calibration_map()}
+
+
+def mfb_baseline(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True,
+                 bar_u_declared: bool | None = None):
     """(volumetric Baseline, the machine's error functions, the hidden effect's params) of :func:`hidden_mfb`'s
-    campaign."""
+    campaign.
+
+    ``bar_u_declared``: whether the baseline's noise model holds the bar's declared calibration uncertainty
+    (:func:`mfb_declared_noise`; :data:`core.baseline.VOLUMETRIC_BAR_CALIBRATION_NOISE`). None: as
+    ``bar_cal_error``, as :func:`scenarios.mfb.run`'s own residual tests take it (``u_cal_fit``: the
+    certificate where the bar differs from its calibration by a draw of it, none where the bar is exactly as
+    calibrated); True on a bar as calibrated measures what declaring it costs."""
     from core.baseline import volumetric
     from scenarios.mfb import default_machine
 
-    res, times, params = hidden_mfb(cause, seed, name=name, bar_cal_error=bar_cal_error)
+    res, times, params = mfb_campaign(cause, seed, name=name, bar_cal_error=bar_cal_error)
     plan = res.plan
     cfg, errs = default_machine(plan.machine)
-    return volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times), errs, params
+    declared = mfb_declared_noise(res, bar_cal_error if bar_u_declared is None else bool(bar_u_declared))
+    return volumetric(res.meas, cfg.chain, plan.nodes, dict(cfg.rotary_points_R_m), times, **declared), errs, params
+
+
+def mfb_bar_miscalibrated(meas, rng: np.random.Generator, u_cal_m=None, cal_map=None) -> list:
+    """The measurements ``meas`` of a bar as calibrated, analysed with a calibration off by a draw of its declared
+    uncertainty: each hole's calibrated position ``O_A`` moved by ``delta_h``, the same in every measurement.
+
+    ``delta = cal_map @ (u_cal * n)``, n independent standard normal: what :func:`scenarios.mfb.run` draws for
+    the realistic bar (``bar_cal_error``: the true bar is the calibration plus ``u_cal * n``, its heights through
+    the rods, :func:`core.mfb.calibration_map`), seen from the other side: the measured bar is the
+    calibration's, the calibration the analysis reads is off. One simulated campaign gives as many realistic-bar
+    campaigns as draws, at the cost of their discovery alone (the probing noise and placements the campaign's).
+    ``u_cal_m`` (12, 3) m, default :data:`scenarios.mfb.U_CAL_UM` per hole; ``cal_map`` default
+    :func:`core.mfb.calibration_map`."""
+    import dataclasses
+
+    from core.mfb import calibration_map
+    from scenarios.mfb import U_CAL_UM
+
+    u = np.tile(np.asarray(U_CAL_UM, float) * UM, (12, 1)) if u_cal_m is None else np.asarray(u_cal_m, float)
+    M = calibration_map() if cal_map is None else np.asarray(cal_map, float)
+    delta = (M @ (u.ravel() * rng.standard_normal(u.size))).reshape(u.shape)
+    return [dataclasses.replace(m, O_A=np.asarray(m.O_A, float) + delta[np.asarray(m.holes, int) - 1])
+            for m in meas]
 
 
 def mfb_effect_outside_baseline(bl, bl0, noise_um: float) -> tuple[float, float]:
@@ -1030,13 +1090,14 @@ MFB_FREE_CACHE = 8
 
 
 @lru_cache(maxsize=MFB_FREE_CACHE)
-def _mfb_free(name: str, seed: int, bar_cal_error: bool, kw: tuple):
+def _mfb_free(name: str, seed: int, bar_cal_error: bool, kw: tuple, bar_u_declared: bool | None = None):
     """(baseline, Outcome, report, params) of the effect-free campaign of ``seed`` on plan ``name``."""
-    return _mfb_free_uncached(name, seed, bar_cal_error, dict(kw))
+    return _mfb_free_uncached(name, seed, bar_cal_error, dict(kw), bar_u_declared)
 
 
-def _mfb_free_uncached(name, seed, bar_cal_error, discover_kw):
-    bl, errs, params = mfb_baseline("none", seed, name=name, bar_cal_error=bar_cal_error)
+def _mfb_free_uncached(name, seed, bar_cal_error, discover_kw, bar_u_declared=None):
+    bl, errs, params = mfb_baseline("none", seed, name=name, bar_cal_error=bar_cal_error,
+                                    bar_u_declared=bar_u_declared)
     o, rep = _mfb_score("none", seed, name, bl, errs, None, discover_kw, params)
     return bl, o, rep, params
 
@@ -1101,14 +1162,15 @@ def _mfb_score(cause, seed, name, bl, errs, free, discover_kw, params=None):
 
 
 def mfb_discovered(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True,
-                   **discover_kw) -> tuple:
+                   bar_u_declared: bool | None = None, **discover_kw) -> tuple:
     """(Outcome, discovery report, the hidden effect's params, the baseline) of one MFB campaign with ``cause``
     hidden.
 
     The Outcome is :func:`mfb_outcome`'s; the report is
     ``core.discover`` 's (its findings' magnitudes and U95s), the params
     :func:`hidden_mfb`'s truth, the baseline :func:`mfb_baseline`'s (to
-    discover again under other settings without simulating again).
+    discover again under other settings without simulating again);
+    ``bar_u_declared`` :func:`mfb_baseline`'s.
     """
     if cause not in MFB_HIDDEN:
         raise ConfigError(f"unknown hidden MFB cause {cause!r}; expected one of {', '.join(MFB_HIDDEN)}")
@@ -1117,17 +1179,18 @@ def mfb_discovered(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_er
         hash(kw)
     except TypeError:
         kw = None
-    free = (_mfb_free(name, int(seed), bool(bar_cal_error), kw) if kw is not None
-            else _mfb_free_uncached(name, int(seed), bool(bar_cal_error), discover_kw))
+    dec = None if bar_u_declared is None else bool(bar_u_declared)
+    free = (_mfb_free(name, int(seed), bool(bar_cal_error), kw, dec) if kw is not None
+            else _mfb_free_uncached(name, int(seed), bool(bar_cal_error), discover_kw, dec))
     if cause == "none":
         return free[1], free[2], free[3], free[0]
-    bl, errs, params = mfb_baseline(cause, seed, name=name, bar_cal_error=bar_cal_error)
+    bl, errs, params = mfb_baseline(cause, seed, name=name, bar_cal_error=bar_cal_error, bar_u_declared=dec)
     o, rep = _mfb_score(cause, seed, name, bl, errs, free, discover_kw, params)
     return o, rep, params, bl
 
 
 def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error: bool = True,
-                **discover_kw) -> Outcome:
+                bar_u_declared: bool | None = None, **discover_kw) -> Outcome:
     """One MFB campaign with ``cause`` hidden, discovered on the volumetric baseline and scored.
 
     The estimand's error (``wp_*``) is the RMS over the positioning and
@@ -1138,13 +1201,17 @@ def mfb_outcome(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error
     space (:func:`mfb_effect_outside_baseline`: this campaign less the same
     seed without the effect) in sigmas of the noise discovery judges the
     effect-free campaign with (``noise_um``: its ``noise_um.sigma_um``, the
-    residuals' on this plan, which on the realistic bar hold the bar's
-    deviation from its calibration: 2.5-4.5 x the 0.125 um touch noise), and
+    residuals' on this plan; on the realistic bar with its declared
+    calibration in the noise model, :func:`mfb_baseline`, the touch noise's
+    size, as on the bar as calibrated; without it, ``bar_u_declared=False``,
+    it holds the bar's deviation from its calibration: 2.5-4.5 x the
+    0.125 um touch noise), and
     ``angle_to_baseline_deg`` its angle to that space; 0 for ``none``. The
     effect-free campaign is simulated and discovered once per plan, seed and
     bar (:data:`MFB_FREE_CACHE`). ``confident`` is the first finding's (not
     flagged ambiguous) and ``alternatives`` its ``ambiguous_with``.
     ``name`` the plan (mfb-3axis, mfb-5axis), ``bar_cal_error``
-    :func:`hidden_mfb`'s.
+    :func:`hidden_mfb`'s, ``bar_u_declared`` :func:`mfb_baseline`'s.
     """
-    return mfb_discovered(cause, seed, name=name, bar_cal_error=bar_cal_error, **discover_kw)[0]
+    return mfb_discovered(cause, seed, name=name, bar_cal_error=bar_cal_error, bar_u_declared=bar_u_declared,
+                          **discover_kw)[0]
