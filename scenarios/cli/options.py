@@ -166,7 +166,8 @@ def tool_offset_mm_text(J) -> str:
 #: Where the J a command used came from (its JSON's ``tool_offset.from``): ``vmt identify``: the log's
 #: ``tool_offset_mm`` line, that line with ``--tool-offset-mm`` giving the same J, the option alone (the log has no
 #: line), neither (J unknown); ``vmt vcmm``: the machine's ``[tool] offset_mm`` (a machine file's, a built-in's
-#: shipped file's), with the plan's ``tool_offset_mm`` line saying the same J.
+#: shipped file's), with the plan's ``tool_offset_mm`` line saying the same J; ``vmt demo``'s identify.json:
+#: ``machine`` (the virtual machine's tool).
 TOOL_OFFSET_FROM = ("log", "log and option", "option", "none", "machine", "machine and log")
 
 
