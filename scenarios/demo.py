@@ -167,6 +167,8 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
     res = self_calibrate(t, grid)
     mc = monte_carlo_touches(t, grid, res.sigma_m, runs=1000, rng=np.random.default_rng(seed + 2))
     ident = identify_report(res, mc, on)   # with its identified_on record, as vmt identify writes it
+    # and the J it is placed with, whence as vmt identify says it: the virtual machine's tool (its [tool] offset_mm)
+    ident["tool_offset"] = {"J_mm": [round(float(v), 9) for v in on["probe_offsets_J_mm"][0]], "from": "machine"}
     write_json_atomic(outp / "identify.json", json_safe(ident))
     g_err = truth.rms_m(res.G, res.design.target_ids)
     inj = _injected_in_gauge(res.design, errs, truth.g)

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_floats3, parse_grid
+from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_grid
 
 
 def register(sub) -> None:
@@ -17,10 +17,13 @@ def register(sub) -> None:
                    help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
     add_noise_arg(p, "for U95; default: sigma from the residuals", old=("--u-probe-um",))
     p.add_argument("--tool-offset-mm", default=None, metavar="X,Y,Z",
-                   help="the probe's offsets J the log was probed with, mm (tool side, as a machine file's [tool] "
-                        "offset_mm); recorded in the state (estimate.identified_on) so that vmt vcmm "
-                        "--machine-state can check its tool: the tables are the tool's X/Y deviation with this "
-                        "probe. Omitted: recorded as unknown (null), and vmt vcmm applies the state unchecked")
+                   help="the probe's offsets J the log was probed with, mm (spindle gauge point minus stylus-tip "
+                        "centre, as a machine file's [tool] offset_mm); recorded in the state (estimate.identified_on) "
+                        "so that vmt vcmm --machine-state can check its tool: the tables are the tool's X/Y deviation "
+                        "with this probe, placed at reading + J. A log that records its J (its tool_offset_mm line: "
+                        "vmt probe / import grbl --tool-offset-mm) is identified with that J without the option, and "
+                        "another J given here is refused. Neither: recorded as unknown (null), the tables at the "
+                        "readings, and vmt vcmm applies the state unchecked")
     from scenarios.cli.options import add_declared_ripple_args
 
     add_declared_ripple_args(
@@ -54,15 +57,17 @@ def _run(args, bar) -> int:
 
     if args.seed is not None and not args.mc:  # refused, not ignored: without --mc nothing is drawn
         raise ConfigError(f"--seed {args.seed}: it seeds the Monte Carlo runs, and there are none; add --mc N")
-    J_mm = None if args.tool_offset_mm is None else parse_floats3(args.tool_offset_mm, "--tool-offset-mm")
-    sub = _declared(args)
-    from core.probelog import LENGTH_MAX_MM
+    from scenarios.cli.options import parse_tool_offset, tool_offset_of_log, tool_offset_record
 
-    if J_mm is not None and max(abs(v) for v in J_mm) > LENGTH_MAX_MM:
-        raise ConfigError(f"--tool-offset-mm {args.tool_offset_mm!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
+    if args.tool_offset_mm is not None:
+        parse_tool_offset(args.tool_offset_mm)     # a bad value refused before any work (the commands' one parser)
+    sub = _declared(args)
     steps = 4 if args.mc else 3
     bar(0, steps)
     log = read_probe(args.log, "identify", bar=bar)
+    # J: the log's tool_offset_mm line (the record of what was done), else --tool-offset-mm, else unknown; an
+    # option that says another J than the log's is refused here, before any work and any file written
+    J_mm, J_from = tool_offset_of_log(log, args.tool_offset_mm)
     warned = list(log.warnings)
     check_planar_scope(log, "identify")
     yaw = yaw_for_chain(log.meta.get("kinematic_chain"))
@@ -83,7 +88,7 @@ def _run(args, bar) -> int:
     # what the state is identified on (estimate.identified_on): a state applied elsewhere is refused by vcmm
     from scenarios.identify_report import identify_record, identify_report
 
-    on = identify_record(log, J_mm, planar & log.ok)   # J: --tool-offset-mm (probe-log/1 has none)
+    on = identify_record(log, J_mm, planar & log.ok)   # J: the log's tool_offset_mm line or --tool-offset-mm
     file_row = np.flatnonzero(planar)[t.row]           # each touch's data row in the file (0-based, as the reader)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
     grid = parse_grid(args.grid_mm, t.pn_R)
@@ -106,6 +111,7 @@ def _run(args, bar) -> int:
 
     report = identify_report(res, mc, on)   # the state at reading + J, with its identified_on record
     report["input_warnings"] = warned
+    report["tool_offset"] = tool_offset_record(J_mm, J_from)   # the J the tables are placed with, and whence
     out = write_json_atomic(args.json, report, special=True)
     bar(steps, steps)
     bar.close()         # the report's lines below the finished progress line, not on it
@@ -113,6 +119,7 @@ def _run(args, bar) -> int:
     print(f"{args.log}: {res.n_touches} touches, {len(G)} targets, {_setups_said(res, t)};"
           f" residual RMS {res.rms_m * 1e6:.3f} um; workpiece {G.min() * 1e6:+.2f}..{G.max() * 1e6:+.2f} um;"
           f" scale {'known' if res.scale_known else 'unknown'}")
+    print(_tool_offset_said(J_mm, J_from))
     _dominant(res, t, file_row)
     ht = res.design.heights
     if ht is not None:
@@ -152,6 +159,20 @@ def _run(args, bar) -> int:
 
     print(f"wrote {said(out)}")
     return 0
+
+
+#: How identify says where its J came from (scenarios.cli.options.TOOL_OFFSET_FROM).
+J_FROM_WORDS = {"log": "the log's tool_offset_mm line", "log and option": "the log's tool_offset_mm line and "
+                "--tool-offset-mm", "option": "--tool-offset-mm (the log has no tool_offset_mm line)"}
+
+
+def _tool_offset_said(J_mm, J_from: str) -> str:
+    """The line that says which probe offsets J the tables are placed with and where they came from."""
+    if J_mm is None:
+        return ("probe offsets J unknown (no tool_offset_mm line in the log, no --tool-offset-mm): the tables at the "
+                "readings, the state's probe_offsets_J_mm null")
+    return (f"probe offsets J = ({', '.join(f'{v:g}' for v in J_mm)}) mm, from {J_FROM_WORDS[J_from]}: the tables at "
+            "the axis positions reading + J")
 
 
 def _setups_said(res, t) -> str:

@@ -123,6 +123,82 @@ def parse_floats3(text: str, name: str) -> tuple[float, float, float]:
     return v
 
 
+#: Two statements of a probe's offsets J (a log's ``tool_offset_mm`` line, ``--tool-offset-mm``, a machine file's
+#: ``[tool] offset_mm``) are the same J when they agree to this on every axis, mm: the float noise of J's trip
+#: through metres (a machine file states J in mm, the simulator holds it in m; 12.345 / 1e3 * 1e3 need not give
+#: 12.345 back), far below any step a J is written to (a GRBL log's 0.001 mm). Not :data:`core.state.J_SAME_MM`
+#: (1 um: whether a state identified with one probe may be applied with another): here both are statements of
+#: the one J the readings were logged with, and two values of it are a conflict, refused, never chosen between.
+J_EQUAL_MM = 1e-9
+
+
+def parse_tool_offset(text: str) -> tuple[float, float, float]:
+    """``--tool-offset-mm X,Y,Z``: the probe's offsets J, mm (:func:`hardware.campaign.parse_tool_offset`, the one
+    parser of the option and of a log's ``tool_offset_mm`` line: every command that takes the option refuses the
+    same bad value in the same words)."""
+    from hardware.campaign import parse_tool_offset as parse
+
+    return parse(text, "--tool-offset-mm")
+
+
+def log_tool_offset(log) -> tuple[float, float, float] | None:
+    """The J a probe log says its readings were logged with (its ``tool_offset_mm`` line: ``vmt probe`` / ``vmt
+    import grbl --tool-offset-mm``), mm; None without the line (the log does not say: a LinuxCNC run, whose
+    controller applied J itself, and a simulation have none, so absent is not J = 0 here). A line that is not
+    three finite numbers within the length bound: ProbeLogError naming the file."""
+    from hardware.campaign import TOOL_OFFSET_KEY, log_tool_offset as said
+
+    return said(log.meta, log.source) if TOOL_OFFSET_KEY in log.meta else None
+
+
+def same_tool_offset(a, b) -> bool:
+    """Whether two J (mm) are the same J (:data:`J_EQUAL_MM`)."""
+    return max(abs(float(x) - float(y)) for x, y in zip(a, b)) <= J_EQUAL_MM
+
+
+def tool_offset_mm_text(J) -> str:
+    """J as the log's line writes it (``0.0,0.0,150.0``), in every message that compares two of them."""
+    from hardware.campaign import tool_offset_text
+
+    return tool_offset_text(J)
+
+
+#: Where the J a command used came from (its JSON's ``tool_offset.from``): ``vmt identify``: the log's
+#: ``tool_offset_mm`` line, that line with ``--tool-offset-mm`` giving the same J, the option alone (the log has no
+#: line), neither (J unknown); ``vmt vcmm``: the machine's ``[tool] offset_mm`` (a machine file's, a built-in's
+#: shipped file's), with the plan's ``tool_offset_mm`` line saying the same J; ``vmt demo``'s identify.json:
+#: ``machine`` (the virtual machine's tool).
+TOOL_OFFSET_FROM = ("log", "log and option", "option", "none", "machine", "machine and log")
+
+
+def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, float] | None, str]:
+    """``(J mm or None, where from)`` for a command that reads the probe log ``log`` with ``--tool-offset-mm``
+    ``given`` (text or None; parse it first, :func:`parse_tool_offset`, to refuse a bad value before any work).
+
+    The log is the record of what was done: its ``tool_offset_mm`` line is the J its readings were logged with,
+    taken without the option; the option may repeat it (the same J, :data:`J_EQUAL_MM`) and is refused, one line
+    naming both values, when it says another (ConfigError). Without the line the option's J is taken; without
+    either J is unknown (None, ``"none"``). ``where from``: one of :data:`TOOL_OFFSET_FROM`."""
+    from core.exceptions import ConfigError
+
+    J_opt = None if given is None else parse_tool_offset(given)
+    J_log = log_tool_offset(log)
+    if J_log is None:
+        return (J_opt, "none") if J_opt is None else (J_opt, "option")
+    if J_opt is None:
+        return J_log, "log"
+    if not same_tool_offset(J_log, J_opt):
+        raise ConfigError(f"--tool-offset-mm {tool_offset_mm_text(J_opt)}: {log.source}'s tool_offset_mm line says "
+                          f"its readings were logged with J = {tool_offset_mm_text(J_log)} mm; one log holds one J: "
+                          "give the log's, or leave the option out (the log's is taken)")
+    return J_log, "log and option"
+
+
+def tool_offset_record(J, source: str) -> dict:
+    """The JSON record of the J a command used: ``{"J_mm": [x, y, z] or null, "from": source}``."""
+    return {"J_mm": None if J is None else [float(v) + 0.0 for v in J], "from": source}
+
+
 GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "
              "write --grid-mm=-110:110:22 when x0 < 0)")
 

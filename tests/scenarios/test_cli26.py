@@ -274,8 +274,9 @@ def test_a_bad_record_is_refused_by_key(identified, rec, key):
 def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified, tmp_path, capsys):
     """A self-calibrated state's tables are the tool's X/Y deviation with the probe it was identified with
     (the angular errors through its arm), so its offsets J matter where it is applied. vmt identify
-    --tool-offset-mm records them (probe-log/1 has no J); vmt vcmm applies the state with the same tool
-    quietly, refuses another tool in one line (exit 2), and says so when the record has none (null).
+    --tool-offset-mm records them (a log without a tool_offset_mm line says no J); vmt vcmm applies the state
+    with the same tool quietly, refuses another tool in one line (exit 2), and says so when the record has none
+    (null).
 
     The runs that go through take --tol-um 1 (session 35; the subject is the check and the notice, made before
     any run: 14 -> 1.5 s CPU each at 1 um), as the record-less test above."""
@@ -303,9 +304,9 @@ def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified
 
 
 @pytest.mark.parametrize("value, why", [
-    ("0,150", "expected three numbers a,b,c, each finite"),
-    ("0,0,nan", "expected three numbers a,b,c, each finite"),
-    ("0,0,x", "expected three numbers a,b,c, each finite"),
+    ("0,150", "expected X,Y,Z, three finite numbers, mm"),      # the words of every command that takes it
+    ("0,0,nan", "expected X,Y,Z, three finite numbers, mm"),
+    ("0,0,x", "expected X,Y,Z, three finite numbers, mm"),
     ("0,0,1e6", "beyond 100000 mm, no probe's offset"),
 ])
 def test_identify_refuses_a_bad_tool_offset_in_one_line(identified, tmp_path, capsys, value, why):

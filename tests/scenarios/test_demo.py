@@ -147,6 +147,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert main(["identify", str(out / "cross-pocket.csv"), "--json", str(cli), "--tool-offset-mm", "0,0,150",
                  "--mc", "0"]) == 0
     assert json.loads(cli.read_text())["estimate"]["identified_on"] == rec
+    assert ident["tool_offset"] == {"J_mm": [0.0, 0.0, 150.0], "from": "machine"}      # whence its J, as identify's
     vcmm = ["vcmm", "--plan", "scenarios/data/vcmm-block-plan.csv", "--task", "scenarios/data/vcmm-block-task.toml",
             "--no-budget", "--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state"]
     for state in (out / "identify.json", cli):
