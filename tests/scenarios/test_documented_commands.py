@@ -6,6 +6,8 @@ A user's first hour is README.md, CONTRIBUTING.md and docs/*.md. Two checks keep
   line of a transcript; ``\\`` continuations joined; ``.venv/bin/vmt`` too) is read by the command line's own
   parser (:func:`scenarios.cli._parser`): a sub-command or option renamed or removed fails here, and so
   does a page still using an old name kept as an alias (it prints "is renamed to" on stderr);
+- every ``--option`` of a prose span such as `vmt scenario mfb-3axis --comp DIR` (a fragment, placeholders and
+  all) is an option of that command, under its current name;
 - a block marked ``<!-- run ... -->`` on the line before its fence runs: a ``sh`` block line by line, as
   written, in a scratch folder (``scenarios/data`` reachable as from the repository's root), each line exit
   0 and every output it names (``--out``, ``--json``, ``--report``, ``--junit``) written; a ``text`` block
@@ -19,6 +21,7 @@ files in LinuxCNC's format, are listed in that session's report.
 
 from __future__ import annotations
 
+import argparse
 import re
 import shlex
 from pathlib import Path
@@ -110,6 +113,44 @@ def test_documented_command_parses(argv, capsys):
         assert getattr(args, "func", None), argv
     err = capsys.readouterr().err
     assert "renamed" not in err, err
+
+
+def _subcommands(p):
+    return next((a.choices for a in p._actions if isinstance(a, argparse._SubParsersAction)), {})
+
+
+def _inline_options():
+    """(page:line, the span, an option) of each ``--option`` in a prose span such as `vmt scenario mfb-3axis
+    --comp DIR` (outside the command blocks): fragments with placeholders, so only their option names are read."""
+    for page in PAGES:
+        lines = (ROOT / page).read_text(encoding="utf-8").splitlines()
+        fenced = set()
+        for start, _tag, _marked, body in blocks("\n".join(lines)):
+            fenced.update(range(start, (body[-1][0] if body else start) + 2))
+        prose = "\n".join("" if i + 1 in fenced else ln for i, ln in enumerate(lines))
+        for m in re.finditer(r"`(vmt [^`]*)`", prose):
+            toks = m.group(1).split()[1:]
+            p, i = _parser(), 0
+            while i < len(toks) and toks[i] in _subcommands(p):
+                p, i = _subcommands(p)[toks[i]], i + 1
+            if i == 0:
+                continue
+            for tok in toks[i:]:
+                if tok.startswith("--"):
+                    yield f"{page}:{prose[:m.start()].count(chr(10)) + 1}", " ".join(toks), p, tok.split("=")[0]
+
+
+def test_prose_commands_name_real_options():
+    """Every option a prose `vmt ...` span names is its command's, under today's name (not a renamed alias)."""
+    from scenarios.cli.options import Renamed
+
+    seen, bad = 0, []
+    for where, span, p, opt in _inline_options():
+        actions = {o: a for a in p._actions for o in a.option_strings}
+        seen += 1
+        if opt not in actions or isinstance(actions[opt], Renamed):
+            bad.append(f"{where}: `vmt {span}`: {opt} " + ("is renamed" if opt in actions else "is not an option"))
+    assert seen >= 50 and not bad, bad
 
 
 def _marked(page: str, tag: str):
