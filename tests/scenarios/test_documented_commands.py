@@ -213,3 +213,26 @@ def test_readme_transcripts_print_as_documented(scratch, capsys):
         assert main(argv) == 0
         got = capsys.readouterr()
         assert got.out.splitlines() + got.err.splitlines() == expected, f"README.md:{n}"
+
+
+def _all_parsers(p, path=("vmt",)):
+    yield " ".join(path), p
+    for name, sub in _subcommands(p).items():
+        yield from _all_parsers(sub, (*path, name))
+
+
+@pytest.mark.parametrize("columns", ["80", "60"])
+def test_help_text_names_whole_options(columns, monkeypatch):
+    """Every ``--option`` a command's --help mentions is a real option of vmt, at any terminal width: argparse
+    wrapped at hyphens, so iso230-2's advice "write --comp-range-deg=-400:800 when LO < 0" read
+    ``--comp-range-`` / ``deg=-400:800`` at 80 columns (scenarios.cli.guard._WholeNames)."""
+    monkeypatch.setenv("COLUMNS", columns)
+    parsers = list(_all_parsers(_parser()))
+    known = {o for _n, p in parsers for a in p._actions for o in a.option_strings}
+    bad, seen = [], 0
+    for name, p in parsers:
+        for m in re.finditer(r"(?<![\w-])--[a-z][a-z0-9-]*", p.format_help()):
+            seen += 1
+            if m.group(0) not in known:
+                bad.append(f"{name} --help: {m.group(0)!r}")
+    assert seen >= 300 and not bad, bad
