@@ -8,7 +8,8 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="run the main job end to end (simulate, identify, discover)")
+    p = sub.add_parser("demo", help="run the main job end to end (simulate, identify, discover; the MFB and its compensation "
+                       "closed loop; an ISO 230-2 test; a report)")
     from scenarios.cli.options import option
 
     option(p, "--out-dir", dest="out_dir", default="out", old=("--out",),

@@ -31,11 +31,13 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import os
 import re
 import signal
 import sys
 import tempfile
+import textwrap
 from pathlib import Path
 
 #: command -> (input files, output files, output folders), as ``args`` attribute names.
@@ -87,17 +89,41 @@ NO_DASH = {
 EXIT_PIPE = 141
 
 
+class _WholeNames:
+    """Help text wrapped at spaces only, never inside a word at its hyphens (textwrap's default, which
+    argparse keeps): ``write --comp-range-deg=-400:800`` came out as ``--comp-range-`` / ``deg=-400:800``
+    on two lines, an option name a reader copying it got wrong (cmds36). A word longer than the line is
+    still cut, as before."""
+
+    def _split_lines(self, text, width):
+        return textwrap.wrap(self._whitespace_matcher.sub(" ", text).strip(), width, break_on_hyphens=False)
+
+    def _fill_text(self, text, width, indent):
+        if isinstance(self, argparse.RawDescriptionHelpFormatter):     # kept as written
+            return super()._fill_text(text, width, indent)
+        return textwrap.fill(self._whitespace_matcher.sub(" ", text).strip(), width, initial_indent=indent,
+                             subsequent_indent=indent, break_on_hyphens=False)
+
+
+@functools.cache
+def _whole_names(formatter_class: type) -> type:
+    """``formatter_class`` with :class:`_WholeNames`' wrapping (one class per formatter class)."""
+    return type(f"WholeNames{formatter_class.__name__}", (_WholeNames, formatter_class), {})
+
+
 class OneLineParser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line, ``vmt CMD: error: ...``, exit 2.
 
     Options are never abbreviated (``allow_abbrev=False``, every command's
     parser is this class): an old option name kept as a hidden alias would
     otherwise make a prefix ambiguous, and a prefix could change meaning
-    when an option is added.
+    when an option is added. Help text never breaks a line inside an option
+    name (:class:`_WholeNames`).
     """
 
     def __init__(self, *args, **kw):
         kw.setdefault("allow_abbrev", False)
+        kw["formatter_class"] = _whole_names(kw.get("formatter_class", argparse.HelpFormatter))
         super().__init__(*args, **kw)
 
     def error(self, message):  # noqa: D102 - argparse's hook

@@ -41,9 +41,10 @@ def readme_hardware_commands():
 
 
 def readme_command(prefix):
-    """The README command block's line that starts with ``prefix`` (comment cut)."""
-    block = (ROOT / "README.md").read_text().split("## Command line", 1)[1].split("```")[1]
-    return next(re.split(r"\s+#", ln)[0].strip() for ln in block.splitlines() if ln.startswith(prefix))
+    """The line of the README's "Command line" blocks that starts with ``prefix`` (comment cut)."""
+    section = (ROOT / "README.md").read_text().split("## Command line", 1)[1].split("\n## ", 1)[0]
+    lines = [ln for block in section.split("```")[1::2] for ln in block.splitlines()]
+    return next(re.split(r"\s+#", ln)[0].strip() for ln in lines if ln.startswith(prefix))
 
 
 def _free_port():
