@@ -566,7 +566,7 @@ def test_gen_a_reseat_hysteresis_outliers_a_baseline_half_absorbs_not_confidentl
 
 
 @pytest.mark.parametrize("gen, effect, seed, p, confidence", [
-    ("gen_a", "reseat_hysteresis", 1262, 0.0004099959000409996, "ambiguous"),
+    ("gen_a", "reseat_hysteresis", 1262, 0.0001799982000179998, "ambiguous"),
     ("gen_b", "outlier", 1134, 0.00911990880091199, "named")])
 
 
@@ -581,7 +581,10 @@ def test_centred_turn_p_pinned_on_a_campaign(gen, effect, seed, p, confidence):
     and the row stays in the fit (outliers rows 2, 5, 95 -> 5, 95, an `unexplained` second finding), the
     put-back left as gen_a outlier 1163's (tests/core/test_discover_defect.py). 3.8e-4 -> 4.1e-4 in session 24
     (:data:`core.discover.TURN_THROUGH_NO_TRIGGER`: 1262's log holds a no-trigger row, and the touch after it
-    turns from that row's approach), still below alpha_family."""
+    turns from that row's approach), still below alpha_family. 4.1e-4 -> 1.8e-4 in session 36
+    (:data:`core.discover.DROPPED_ROUND_REOPENED` on: the bump that took row 2's re-seat is dropped by the rival
+    check and its round decided again without it, so row 2 is an outlier again, rows 2, 5, 95), still below
+    alpha_family."""
     import importlib
 
     log, _ = importlib.import_module(f"scenarios.blind.{gen}").generate(effect, seed)
