@@ -96,6 +96,23 @@ def cells(runs: dict | None = None) -> dict:
     return c
 
 
-if __name__ == "__main__":
+def main(argv=None) -> int:
+    """``python -m scenarios.mfb_paper_rows``: print each cell (about 30 s CPU). ``-h``/``--help`` prints the
+    module's docstring and runs nothing; any other argument is refused (exit 2), since the study takes none."""
+    import sys
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in ("-h", "--help"):
+        print(__doc__.strip())
+        return 0
+    if argv:
+        print(f"python -m scenarios.mfb_paper_rows: error: takes no arguments, got {' '.join(argv)!r} (-h for help)",
+              file=sys.stderr)
+        return 2
     for k, v in cells().items():
         print(f"{k}: {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -21,3 +21,15 @@ def test_the_pages_seed_1_figures_are_the_scripts():
     assert k1 in " ".join(doc.split()), k1
     missing = {k: v for k, v in cells.items() if v not in doc}
     assert not missing, missing
+
+
+def test_help_runs_nothing_and_arguments_are_refused(capsys):
+    """``--help`` printed nothing and ran the 30 s study (cmds36); now it prints the docstring, and an argument the
+    study does not take is refused with exit 2, both before any run."""
+    from scenarios import mfb_paper_rows
+
+    assert mfb_paper_rows.main(["--help"]) == 0
+    assert "seed-1 figures" in capsys.readouterr().out
+    assert mfb_paper_rows.main(["--seed", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "takes no arguments" in err and err.count("\n") == 1
