@@ -1259,9 +1259,9 @@ def orth_of(A, tol: float = 1e-9, qr=None):
 #: Compute :func:`quadratic_form_sf`'s upper tail (``x > 0``, some weight > 0) as the inversion integral on a contour
 #: through its saddlepoint (:func:`_qf_sf_contour`) instead of Imhof's integral on the real line
 #: (:func:`_qf_sf_imhof`, kept for ``x <= 0`` and as the fallback). Session 36 (imhof36): on the MFB's 969 recorded
-#: weight sets and on closed forms the contour is exact to about 1e-14 relative at tails 0.5 to 1e-20 and 3-20 x
-#: cheaper, where Imhof's quadrature returned 0 or up to 1e-4 too much when one weight dominates
-#: (docs/papers-mfb.md, "Imhof's quadrature where one weight dominates").
+#: weight sets two contours agree to 5e-15 relative, on closed forms the contour is within 2e-13 relative at tails 0.5
+#: to 1e-20, and a tail costs a median 0.15 x Imhof's; Imhof's quadrature returned 0 or up to 1e-4 too much when one
+#: weight dominates (docs/papers-mfb.md, "Imhof's quadrature where one weight dominates").
 QF_SADDLE_CONTOUR = True
 
 
@@ -1278,15 +1278,15 @@ def quadratic_form_sf(weights, x: float = 0.0, mult=None) -> float:
 
     Where ``x > 0`` and a weight is positive (:data:`QF_SADDLE_CONTOUR`) it is taken on a parabola through the
     saddlepoint of ``M(s) exp(-s x) / s`` that bends towards ``Re s -> +inf`` (:func:`_qf_sf_contour`): the
-    integrand is of the tail's own size and decays as a Gaussian, so a far tail is accurate relatively (about
-    1e-14 against chi-square tails from 0.5 to 1e-20, a dominant weight with a chi-square or a convolution beside it,
-    tests/core/test_quadratic_form_tail.py), also where one weight dominates the others. Elsewhere (``x <= 0``: the
-    ratio of two quadratic forms below; or the contour's check fails) Imhof's form of the same integral on the real
-    line (Biometrika 48, 1961, eq 3.2; :func:`_qf_sf_imhof`), accurate absolutely (below 3e-6 at 2 degrees of
-    freedom, 1e-7 at 3, 1e-9 from 4 on; not where one weight dominates: there its integrand decays as for one
-    degree and its error reached 1e-4). The result clipped to [0, 1]. A ratio of two quadratic
-    forms of one vector, ``e^T B e / e^T D e > c``, is ``e^T (B - c D) e > 0``: weights of ``B - c D``, ``x``
-    0 (what :func:`core.uncertainty.model_error_budget` tests when the noise's variance is the residuals'
+    integrand is of the tail's own size and decays as a Gaussian, so a far tail is accurate relatively (within
+    2e-13 against chi-square tails from 0.5 to 1e-20, 1e-14 against a dominant weight with a chi-square or a
+    convolution beside it, tests/core/test_quadratic_form_tail.py), also where one weight dominates the others.
+    Elsewhere (``x <= 0``: the ratio of two quadratic forms below; or the contour's check fails) Imhof's form of
+    the same integral on the real line (Biometrika 48, 1961, eq 3.2; :func:`_qf_sf_imhof`), accurate absolutely
+    (below 3e-6 at 2 degrees of freedom, 1e-7 at 3, 1e-9 from 4 on; not where one weight dominates: there its
+    integrand decays as for one degree and its error reached 1e-4). The result clipped to [0, 1]. A ratio of two
+    quadratic forms of one vector, ``e^T B e / e^T D e > c``, is ``e^T (B - c D) e > 0``: weights of ``B - c D``,
+    ``x`` 0 (what :func:`core.uncertainty.model_error_budget` tests when the noise's variance is the residuals'
     own). ``weights`` all 0: 1 if ``x < 0`` else 0.
 
     Raises

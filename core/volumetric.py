@@ -1866,7 +1866,7 @@ def _tail(lam: np.ndarray, x: float, p_sat: float, level: float, exact: bool = F
     one weight dominates (the integrand then decays as for one degree of freedom): with weights (1, 1e-3, 1e-3) at
     x = 30 it returns 0 where the tail is at least chi2_1's 4.3e-8, which would reject a test at any level (mfb35:
     3 of 969 weight sets of real runs at the between-node test's per-interval level). Since session 36 the exact
-    tail is the saddlepoint contour's (:data:`core.lsq.QF_SADDLE_CONTOUR`: relative error about 1e-14 there too),
+    tail is the saddlepoint contour's (:data:`core.lsq.QF_SADDLE_CONTOUR`: relative error about 1e-14 there),
     which the bound no longer binds but at rounding; it stays for Imhof's quadrature (the contour off, or its
     fallback; docs/papers-mfb.md)."""
     from .lsq import quadratic_form_sf

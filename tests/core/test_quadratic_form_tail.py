@@ -30,8 +30,8 @@ def _dominant_one_dof(w1, a, m, x):
 
 def test_equal_weights_are_chi_square_tails_to_rounding():
     """k equal weights (or one weight of multiplicity k) are a scaled chi-square: scipy's chi2 tail, relatively,
-    from 0.5 to 1e-20 (measured below 2e-14: the contour's integrand is of the tail's size, nothing cancels;
-    tolerance 1e-12 leaves 50 x for other platforms' libm)."""
+    from 0.5 to 1e-20 (measured below 2e-13, 400 degrees at 1e-20 the worst: the contour's integrand is of the
+    tail's size, nothing cancels; tolerance 1e-12 leaves 5 x for other platforms' libm)."""
     for k in (2, 3, 5, 40, 400):
         for p in (0.9, 0.5, 1e-2, 1e-5, 1e-8, 1e-12, 1e-20):
             x = float(stats.chi2.isf(p, k))
@@ -81,7 +81,7 @@ def test_a_dominant_weight_of_one_degree_against_a_convolution_where_imhof_faile
     References: the convolution over the dominant term (_dominant_one_dof, scipy's quadrature on positive terms,
     relative error about 1e-13) with the rest a chi-square of m small equal weights, or the second weight of
     mfb-3axis seed 12's between-node interval (2.2e-7 of the first: the set Imhof returned 0 on, where the tail is
-    the level 7.9e-6). Relative 1e-9 (the reference's quadrature; measured below 1e-12). Imhof's quadrature on
+    the level 7.9e-6). Relative 1e-9 (the reference's quadrature; measured below 1e-14). Imhof's quadrature on
     the real set (core.lsq._qf_sf_imhof) returns 0: the failure mended."""
     for a, m in ((1e-3, 300), (1e-2, 200), (2.2e-7, 1)):
         for p in TAILS:
