@@ -1815,8 +1815,9 @@ MFB_MODEL_ERROR_P = 1.3498980316300946e-3
 #: self-calibration's (:data:`core.uncertainty.MODEL_ERROR_EXACT_GATE`: model error in several tables dilutes
 #: each one's test there; not measured on the MFB's truths).
 MFB_MODEL_ERROR_EXACT_GATE = False
-#: The residual tests' exact tails (Imhof's quadrature, :func:`core.lsq.quadratic_form_sf`: 10-80 ms each, 19 per
-#: noisy run, a quarter of the share's CPU) only where one could change a decision (session 35, mfb35): a tail
+#: The residual tests' exact tails (:func:`core.lsq.quadratic_form_sf`; Imhof's quadrature 10-80 ms each, 19 per
+#: noisy run, a quarter of the share's CPU; the saddlepoint contour since session 36, 3-10 ms) only where one could
+#: change a decision (session 35, mfb35): a tail
 #: whose rigorous lower bound (:func:`_tail_lower_bound`) is at or above the level cannot fall below it, whatever
 #: the exact value, so the decision is the exact tail's; where also Satterthwaite's scaled chi-square is at least
 #: :data:`EXACT_TAIL_FACTOR` x the level, that approximate ``p`` is reported, labelled (JSON ``model_error.p_approx``:
@@ -1864,8 +1865,10 @@ def _tail(lam: np.ndarray, x: float, p_sat: float, level: float, exact: bool = F
     The exact tail is never below the rigorous lower bound (session 35): Imhof's quadrature loses its accuracy when
     one weight dominates (the integrand then decays as for one degree of freedom): with weights (1, 1e-3, 1e-3) at
     x = 30 it returns 0 where the tail is at least chi2_1's 4.3e-8, which would reject a test at any level (mfb35:
-    3 of 969 weight sets of real runs at the between-node test's per-interval level). Its error the other way (a
-    tail too large: a test that keeps what it should reject) is left, and said in docs/papers-mfb.md."""
+    3 of 969 weight sets of real runs at the between-node test's per-interval level). Since session 36 the exact
+    tail is the saddlepoint contour's (:data:`core.lsq.QF_SADDLE_CONTOUR`: relative error about 1e-14 there),
+    which the bound no longer binds but at rounding; it stays for Imhof's quadrature (the contour off, or its
+    fallback; docs/papers-mfb.md)."""
     from .lsq import quadratic_form_sf
 
     low = _tail_lower_bound(lam, x)

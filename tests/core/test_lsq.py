@@ -307,9 +307,11 @@ def test_group_sums_of_a_dense_block_are_the_indicator_products_bit_for_bit():
 
 
 def test_quadratic_form_sf_known_answers():
-    """Imhof's inversion against closed forms (session 30, small30): equal weights are a scaled
-    chi-square (chi2_k tails at 1e-2, 1e-3, 1e-5 for k = 2, 3, 4, 6: error below 3e-6, 2e-7, 2e-9
-    (measured 1.9e-6, 8.5e-8, 8.9e-10), and 2 chi2_40 at 30); weights (1 - c) on 4 degrees and -c on 20 are the beta tail of a ratio
+    """The exact tail against closed forms (session 30, small30): equal weights are a scaled
+    chi-square (chi2_k tails at 1e-2, 1e-3, 1e-5 for k = 2, 3, 4, 6: error below 3e-6, 2e-7, 2e-9, Imhof's
+    quadrature's accuracy (measured 1.9e-6, 8.5e-8, 8.9e-10); since session 36 x > 0 takes the saddlepoint
+    contour, measured below 1e-15 here: tests/core/test_quadratic_form_tail.py), and 2 chi2_40 at 30); weights
+    (1 - c) on 4 degrees and -c on 20 at x = 0 (Imhof's) are the beta tail of a ratio
     of chi-squares, P(chi2_4 / (chi2_4 + chi2_20) > c) = beta(2, 10).sf(c) (error below 1e-9, measured
     1e-16); all-zero weights are a point mass at 0."""
     from scipy import stats

@@ -524,22 +524,26 @@ def test_tail_choice_known_answers_and_the_exact_tail_where_a_decision_could_fli
     assert vol._tail(far, 5.0, sat(far, 5.0), 1e-3) == (quadratic_form_sf(far, 5.0), False)
 
 
-def test_exact_tail_never_below_its_rigorous_bound_when_one_weight_dominates():
+def test_exact_tail_never_below_its_rigorous_bound_when_one_weight_dominates(monkeypatch):
     """Session 35 (mfb35's finding): with one weight dominant Imhof's quadrature is inaccurate (the integrand decays
     as for one degree of freedom); at weights (1, 1e-3, 1e-3) and x = 30 it returns 0, where the tail is at least
     chi2_1's sf(30) = 4.32e-8 (the two small terms only add) and at most chi2_1's sf(29.7) = 6.5e-8 plus the
     chance that the small terms together exceed 0.3 (1e-3 chi2_2 > 0.3: exp(-150)). The residual tests' tail is
-    then the bound, not 0: a test at any level would otherwise reject. Known answers from scipy's chi-square, not
-    from the code under test."""
+    then the bound, not 0: a test at any level would otherwise reject. Since session 36 (imhof36) the exact tail
+    is the saddlepoint contour's, inside those bounds by itself; the bound still guards Imhof's quadrature (the
+    contour off, or its fallback). Known answers from scipy's chi-square, not from the code under test."""
     from scipy.stats import chi2
 
-    from core.lsq import quadratic_form_sf
+    import core.lsq as lsq
 
     lam = np.array([1.0, 1e-3, 1e-3])
-    assert quadratic_form_sf(lam, 30.0) < chi2.sf(30.0, 1)   # the quadrature's failure this guards against
-    for exact in (False, True):
-        p, approx = vol._tail(lam, 30.0, 1e-9, 1e-5, exact=exact)
-        assert not approx and chi2.sf(30.0, 1) <= p <= chi2.sf(29.7, 1), p
+    assert lsq._qf_sf_imhof(lam, np.ones(3), 30.0) < chi2.sf(30.0, 1)   # the quadrature's failure this guards against
+    assert chi2.sf(30.0, 1) <= lsq.quadratic_form_sf(lam, 30.0) <= chi2.sf(29.7, 1)   # the contour's tail
+    for contour in (True, False):
+        monkeypatch.setattr(lsq, "QF_SADDLE_CONTOUR", contour)
+        for exact in (False, True):
+            p, approx = vol._tail(lam, 30.0, 1e-9, 1e-5, exact=exact)
+            assert not approx and chi2.sf(30.0, 1) <= p <= chi2.sf(29.7, 1), p
 
 
 def test_between_node_test_takes_the_exact_tail_near_its_level_and_labels_the_approximate_one(meas3, monkeypatch):
