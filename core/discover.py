@@ -11157,6 +11157,16 @@ def _rejudged_beside_outlier_structure(bl, findings, terms, Qall, y, all_rows, o
     return out
 
 
+#: :func:`outlier_structure_columns` tries also ``reversed approach travel`` beside ``reversed approach``: on the
+#: touches after a reversed approach, the cosine of the approach with the surface normal (0 elsewhere), the reading
+#: of a fixed extra travel along the approach (a probe seat that lands differently after a reversal needs ``h`` more
+#: travel along the approach: ``h d.n`` on the normal) where the 0/1 column is a fixed step along the normal. Blind
+#: gen_a reseat_hysteresis 11700 (session 36, out36; the generator's extra travel along the approach, touches 0-33 deg
+#: off their normal): the 0/1 column leaves the cosine's spread (8.4-10 um of a 10 um travel) and loses to dust by
+#: BIC +60.5; this column explains the six set-aside rows at -36.1, and the confident `outlier` is hedged. Session 36,
+#: docs/discovery.md, "Session 36: the outlier screen's masking". False: the 0/1 column alone (the behaviour before).
+OUTLIER_STRUCTURE_REVERSAL_TRAVEL = False
+
 def outlier_structure_columns(bl: Baseline, outliers) -> dict:
     """The structural columns :func:`outliers_structure` tries for a planar campaign's set-aside rows (empty for
     another kind, or where the touches do not map one to one onto the baseline's rows). Per target holding two or
@@ -11189,6 +11199,10 @@ def outlier_structure_columns(bl: Baseline, outliers) -> dict:
         cosv = np.zeros(n)
         cosv[ok] = np.sum(np.asarray(t.d_R, float)[ok] * dp[ok], axis=1)
         cols["reversed approach"] = (cosv < 0).astype(float)
+        if OUTLIER_STRUCTURE_REVERSAL_TRAVEL:
+            # the seat's extra travel is along the approach: it reads on the normal as the approach's cosine with it
+            nd = np.sum(np.asarray(t.d_R, float) * np.asarray(t.n_R, float), axis=1)
+            cols["reversed approach travel"] = (cosv < 0).astype(float) * nd
     if bl.whiten is not None:
         W = bl.whiten
         cols = {k: W @ v for k, v in cols.items()}
