@@ -1574,6 +1574,11 @@ OUTLIER_ROBUST_START = False
 #: The robust start's first set: rows whose least-absolute-deviations residual is beyond this many robust sigma
 #: (1.4826 MAD of the residuals the fit does not interpolate). Only a start: the prediction test decides each row.
 OUTLIER_ROBUST_START_SIGMA = 3.0
+#: With :data:`OUTLIER_ROBUST_START`: the robust start also where the screen set nothing aside (two gross errors that
+#: inflate the scatter so that neither passes the bound: masked wholly), its set then up to the screen's cap. Off
+#: (measured, session 36): on tuning campaigns of gen_b reseat_settling and gen_a/gen_b part_change it sets aside the
+#: effect's own structured touches where the screen set none (the screen's later tests then judge them).
+OUTLIER_ROBUST_START_EMPTY = False
 #: Logs longer than this are not given the robust start (its linear program is dense in the rows).
 OUTLIER_ROBUST_START_MAX_ROWS = 4000
 
@@ -1667,13 +1672,21 @@ def _robust_outliers(X: np.ndarray, y: np.ndarray, out: list, alpha: float, cap:
     :data:`OUTLIER_ROBUST_START_SIGMA` robust sigma, and
     :func:`_settle_outliers` tests each set-aside row again by its
     prediction from the kept rows and each kept row on the clean fit, until
-    stable. The screen's own set is settled the same way; of the two, the
-    one whose clean fit leaves the smaller residual variance is returned
-    (the robust set only within ``cap``: more is the screen's structure, not
-    this rule's).
+    stable. That set replaces the screen's where its clean fit's residual
+    variance is significantly smaller (F at ``alpha``: on gen_b outlier
+    1129 the two sets differ by one touch of a pair that alone carries a
+    parameter, the same variance either way, and the screen's set, the
+    truth, stays). The rule mends swamping
+    (good rows set aside for the gross errors beside them) and only that:
+    it runs where the screen set rows aside, and the robust set replaces
+    them only where it holds no more rows than they (a robust set beyond
+    the screen's count, or beside a screen that set nothing aside, is
+    structure the screen's own tests judge: on gen_b reseat_settling and
+    gen_a part_change tuning campaigns the robust start set aside the
+    touches of the effect's own structure where the screen set none).
     """
     n = len(y)
-    if n > OUTLIER_ROBUST_START_MAX_ROWS or n < 8:
+    if (not out and not OUTLIER_ROBUST_START_EMPTY) or n > OUTLIER_ROBUST_START_MAX_ROWS or n < 8:
         return out
     Q0 = Q if isinstance(Q, np.ndarray) and Q.shape[0] == n else orth_of(X, tol)
     if n - Q0.shape[1] < 4:
@@ -1687,10 +1700,14 @@ def _robust_outliers(X: np.ndarray, y: np.ndarray, out: list, alpha: float, cap:
     sig = 1.4826 * float(np.median(np.abs(r[fitted]))) * np.sqrt(n / max(n - Q0.shape[1], 1))
     start = np.flatnonzero(np.abs(r) > OUTLIER_ROBUST_START_SIGMA * sig)
     robust, v_robust = _settle_outliers(Q0, y, start, alpha)
-    if not robust or len(robust) > cap or set(robust) == set(out):
+    if not robust or len(robust) > min(cap, len(out) if out else cap) or set(robust) == set(out):
         return out
     _, r_out, _, dof_out, _ = _clean_fit(Q0, y, out)
-    return robust if v_robust < float(r_out @ r_out) / max(dof_out, 1) else out
+    dof_robust = n - len(robust) - Q0.shape[1]  # (the kept rows' dof where the rank is kept; a floor of 1 below)
+    # significantly smaller (F at the screen's alpha): two sets the data cannot tell apart (a chip on one of the
+    # two touches that alone carry a parameter: either may be it) leave the screen's
+    f = stats.f.isf(alpha, max(dof_robust, 1), max(dof_out, 1))
+    return robust if v_robust * f < float(r_out @ r_out) / max(dof_out, 1) else out
 
 
 def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: float = 0.02,
@@ -1790,7 +1807,7 @@ def find_outliers(X: np.ndarray, y: np.ndarray, alpha: float = 0.001, max_frac: 
         out.append(int(idx[k]))
         keep[idx[k]] = False
     if OUTLIER_ROBUST_START and isinstance(X, np.ndarray):
-        out = _robust_outliers(X, y, out, alpha, cap, tol, Q=Q if len(out) == 0 else None)
+        out = _robust_outliers(X, y, out, alpha, cap, tol)
     if OUTLIER_CHIPS_LIKELIHOOD and out and places is not None and isinstance(X, np.ndarray):
         out = _chips_by_likelihood(X, y, out, places, alpha, cap, tol)
     if OUTLIER_CHIPS_READ_MORE and out and places is not None and isinstance(X, np.ndarray):
