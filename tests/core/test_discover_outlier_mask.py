@@ -83,14 +83,22 @@ def test_settle_puts_good_rows_back():
 
 
 def test_a_tie_keeps_the_screen_set(monkeypatch):
-    """Where two sets leave the same scatter (a chip on one of two touches that alone carry a parameter: either may
-    be it), the screen's set stays (the robust set must be significantly better, F at alpha): a chip of 12 um on a
-    feature touched in two set-ups only, beside a clean table."""
+    """Where two sets leave the same scatter the screen's set stays (the robust set must be significantly better, F
+    at alpha). Two chips (-21.6, +10.5 um) on neighbouring targets 3 and 4 of the first set-up of a 6-target,
+    4-set-up part: once chip 3 is set aside, chip 4 and the good touch 2 carry one direction between them, and
+    either set aside leaves the same variance: the data cannot say which is the chip (the screen takes 2, the robust
+    start 4). Without the F test the rule took the robust set on a tie of rounding (gen_b outlier 1129, where that
+    made a right screen wrong)."""
     X = _toy_design()
     y = 0.2 * np.random.default_rng(3).standard_normal(len(X))
     y[[3, 4]] += [-21.6, 10.5]
     off = _screen(X, y, False, monkeypatch)
+    assert off == [2, 3]
     assert _screen(X, y, True, monkeypatch) == off
+    Q = D.orth_of(X)
+    v_screen = D._clean_fit(Q, y, [2, 3])[1]
+    v_robust = D._clean_fit(Q, y, [3, 4])[1]
+    assert v_screen @ v_screen == pytest.approx(v_robust @ v_robust, rel=1e-9)  # the tie itself
 
 
 def test_clean_and_single_chip_unchanged(monkeypatch):
