@@ -1637,7 +1637,7 @@ def _settle_outliers(Q: np.ndarray, y: np.ndarray, start, alpha: float) -> tuple
     fit's residual variance)."""
     S = set(int(i) for i in start)
     seen: set = set()
-    while True:
+    for _ in range(4 * len(y)):  # (each pass moves one row; a set come round again stops it sooner)
         keep, r, U, dof, tp = _clean_fit(Q, y, S)
         if frozenset(S) in seen or dof < 3:
             break
@@ -1645,7 +1645,8 @@ def _settle_outliers(Q: np.ndarray, y: np.ndarray, start, alpha: float) -> tuple
         rows = sorted(S)
         if rows:
             j = int(np.argmin(tp))
-            if tp[j] <= stats.t.isf(alpha / (2 * (len(keep) + 1)), dof - 1):
+            # (its deleted t in the fit of the kept rows and it: dof of that fit less one, the kept fit's dof)
+            if tp[j] <= stats.t.isf(alpha / (2 * (len(keep) + 1)), dof):
                 S.discard(rows[j])
                 continue
         t, _ = _deleted_t(U, r, dof)
@@ -1654,6 +1655,7 @@ def _settle_outliers(Q: np.ndarray, y: np.ndarray, start, alpha: float) -> tuple
             S.add(int(keep[k]))
             continue
         break
+    keep, r, U, dof, tp = _clean_fit(Q, y, S)
     rows = sorted(S)
     order = [rows[i] for i in np.argsort(-tp, kind="stable")] if rows else []
     return order, float(r @ r) / max(dof, 1)
