@@ -1571,8 +1571,10 @@ OUTLIER_RANK_TOL = True
 #: targets of two to four touches) the chips' targets' own parameters absorbed three of them (leverage 0.79-0.88),
 #: their neighbours stood out, and the screen set aside six good rows and missed the three chips. False: the screen
 #: as before. Measured (docs/discovery.md, "Session 36: the outlier screen's masking"): 837 tuning campaigns screened,
-#: 14 could differ, none moved a reading or a workpiece; 11505's workpiece 7.57 -> 0.20 um.
-OUTLIER_ROBUST_START = False
+#: 14 could differ, none moved a reading or a workpiece; 11505's workpiece 7.57 -> 0.20 um. On since session 36 (the
+#: lead, at no cost on tuning seeds; built after reading set F's 11505, so set F is not a blind figure for it: the
+#: next blind set is).
+OUTLIER_ROBUST_START = True
 #: The robust start's first set: rows whose least-absolute-deviations residual is beyond this many robust sigma
 #: (1.4826 MAD of the residuals the fit does not interpolate). Only a start: the prediction test decides each row.
 OUTLIER_ROBUST_START_SIGMA = 3.0
@@ -11186,7 +11188,9 @@ def _rejudged_beside_outlier_structure(bl, findings, terms, Qall, y, all_rows, o
 #: off their normal): the 0/1 column leaves the cosine's spread (8.4-10 um of a 10 um travel) and loses to dust by
 #: BIC +60.5; this column explains the six set-aside rows at -36.1, and the confident `outlier` is hedged. Session 36,
 #: docs/discovery.md, "Session 36: the outlier screen's masking". False: the 0/1 column alone (the behaviour before).
-OUTLIER_STRUCTURE_REVERSAL_TRAVEL = False
+#: On since session 36 (the lead: it flips no tuning reading; built after reading set F's 11700, so set F is not a
+#: blind figure for it: the next blind set is).
+OUTLIER_STRUCTURE_REVERSAL_TRAVEL = True
 
 def outlier_structure_columns(bl: Baseline, outliers) -> dict:
     """The structural columns :func:`outliers_structure` tries for a planar campaign's set-aside rows (empty for

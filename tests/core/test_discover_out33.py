@@ -153,9 +153,12 @@ def test_bad_input():
         D.outliers_structure(Q, r, [0, 1], {"x": np.zeros(3)})
 
 
-def test_columns_of_a_planar_campaign():
+def test_columns_of_a_planar_campaign(monkeypatch):
     """:func:`core.discover.outlier_structure_columns`: a target's time only where it holds two outliers and a
-    kept touch; the reversal where the approach's cosine with the move before is negative (0 without one)."""
+    kept touch; the reversal where the approach's cosine with the move before is negative (0 without one). With
+    :data:`core.discover.OUTLIER_STRUCTURE_REVERSAL_TRAVEL` (on since session 36) the reversal also as a travel along
+    the approach, read on the normal: the flag times the approach's cosine with the normal."""
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", False)
     target = np.array([0, 0, 0, 1, 1, 2, 2, 2])
     t_s = np.arange(8) * 10.0
     d = np.tile([1.0, 0, 0], (8, 1))
@@ -170,4 +173,12 @@ def test_columns_of_a_planar_campaign():
     assert sorted(cols) == ["reversed approach", "time a"]
     assert cols["time a"] == pytest.approx([-10, 0, 10, 0, 0, 0, 0, 0])
     assert cols["reversed approach"].tolist() == [0, 0, 1, 0, 0, 0, 1, 0]
+    # the travel: normals at 0 and 60 degrees to the approach (cosines 1 and 0.5) on the two reversed touches
+    n = np.tile([1.0, 0, 0], (8, 1))
+    n[6] = [0.5, np.sqrt(0.75), 0]
+    touches.n_R = n
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", True)
+    cols = D.outlier_structure_columns(bl, [0, 1, 3, 4])
+    assert sorted(cols) == ["reversed approach", "reversed approach travel", "time a"]
+    assert cols["reversed approach travel"] == pytest.approx([0, 0, 1, 0, 0, 0, 0.5, 0], abs=1e-15)
     assert D.outlier_structure_columns(SimpleNamespace(kind="volumetric"), [0, 1]) == {}

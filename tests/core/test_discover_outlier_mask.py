@@ -1,12 +1,13 @@
 """Session 36 (out36): the outlier screen's masking, and a re-seat's travel as the outliers' structure.
 
-- :data:`core.discover.OUTLIER_ROBUST_START` (off): the one-pass screen (the row of the largest studentized deleted
-  residual removed, the fit refitted, never a removed row tested again) masks gross errors on targets of few
-  touches: their own parameters share the error, the neighbours stand out and go, and the error is left alone on
-  its parameter (leverage near one, never judged). The rule starts again from the least-absolute-deviations fit and
-  tests each set-aside row by its prediction from the kept rows, each kept row on the clean fit, until stable.
-- :data:`core.discover.OUTLIER_STRUCTURE_REVERSAL_TRAVEL` (off): the structure test of set-aside rows tries the
-  reversed approach as a travel along the approach (``flag * d.n``) beside the 0/1 step.
+- :data:`core.discover.OUTLIER_ROBUST_START` (on since session 36): the one-pass screen (the row of the largest
+  studentized deleted residual removed, the fit refitted, never a removed row tested again) masks gross errors on
+  targets of few touches: their own parameters share the error, the neighbours stand out and go, and the error is
+  left alone on its parameter (leverage near one, never judged). The rule starts again from the
+  least-absolute-deviations fit and tests each set-aside row by its prediction from the kept rows, each kept row on
+  the clean fit, until stable.
+- :data:`core.discover.OUTLIER_STRUCTURE_REVERSAL_TRAVEL` (on since session 36): the structure test of set-aside
+  rows tries the reversed approach as a travel along the approach (``flag * d.n``) beside the 0/1 step.
 
 docs/discovery.md, "Session 36: the outlier screen's masking".
 """
