@@ -1198,7 +1198,7 @@ VOLUMETRIC_ALONG_BAR_BY_MEASUREMENT = False
 #: declares the artefact's calibration uncertainty; residual structure consistent with it is not a cause. On, the
 #: rows are whitened by the probing noise and the bar's calibration covariance together (generalised least
 #: squares with the bar's deviation a random field of declared covariance: :func:`_noise_whitening`). Off: the
-#: touch noise alone (sessions 13-35), whatever the builder is given. Session 36 (mfb36, docs/discovery.md
+#: touch noise alone (sessions 13-35), whatever the builder is given. Session 36 (mfb36, docs/discovery-studies.md
 #: "Session 36: MFB discovery judged with the bar's declared calibration").
 VOLUMETRIC_BAR_CALIBRATION_NOISE = True
 

@@ -1570,7 +1570,7 @@ OUTLIER_RANK_TOL = True
 #: tested again) masks: on blind gen_b outlier 11505 (five chips of 14-27 um, 204 touches, 108 parameters, most
 #: targets of two to four touches) the chips' targets' own parameters absorbed three of them (leverage 0.79-0.88),
 #: their neighbours stood out, and the screen set aside six good rows and missed the three chips. False: the screen
-#: as before. Measured (docs/discovery.md, "Session 36: the outlier screen's masking"): 837 tuning campaigns screened,
+#: as before. Measured (docs/discovery-studies.md, "Session 36: the outlier screen's masking"): 837 tuning campaigns screened,
 #: 14 could differ, none moved a reading or a workpiece; 11505's workpiece 7.57 -> 0.20 um. On since session 36 (the
 #: lead, at no cost on tuning seeds; built after reading set F's 11505, so set F is not a blind figure for it: the
 #: next blind set is).
@@ -7279,7 +7279,7 @@ REFUSALS_BESIDE_DROPPED_MARKED = True
 #: every dropped one kept out, what it adopts judged by the rival check, ``rival_checked``). Without it only the
 #: causes adopted after the refused one are judged again; a cause refused in a round beside it (or never reached,
 #: the rounds spent) is not. Not where outliers were put back by a cause that stays. Session 36 (sel36); off: built,
-#: measured, for the lead (docs/discovery.md, "Session 36: ...").
+#: measured, for the lead (docs/discovery-studies.md, "Session 36: ...").
 RECHOSEN_ROUND_REOPENED = False
 
 
@@ -11187,7 +11187,7 @@ def _rejudged_beside_outlier_structure(bl, findings, terms, Qall, y, all_rows, o
 #: gen_a reseat_hysteresis 11700 (session 36, out36; the generator's extra travel along the approach, touches 0-33 deg
 #: off their normal): the 0/1 column leaves the cosine's spread (8.4-10 um of a 10 um travel) and loses to dust by
 #: BIC +60.5; this column explains the six set-aside rows at -36.1, and the confident `outlier` is hedged. Session 36,
-#: docs/discovery.md, "Session 36: the outlier screen's masking". False: the 0/1 column alone (the behaviour before).
+#: docs/discovery-studies.md, "Session 36: the outlier screen's masking". False: the 0/1 column alone (the behaviour before).
 #: On since session 36 (the lead: it flips no tuning reading; built after reading set F's 11700, so set F is not a
 #: blind figure for it: the next blind set is).
 OUTLIER_STRUCTURE_REVERSAL_TRAVEL = True

@@ -19,7 +19,7 @@ the bar's deviation and the hidden effects were 0.2-0.8 sigma of it, the
 row's catalogue rate over no campaign), and ``mfb_calibrated`` the bar as
 calibrated (``bar_cal_error`` off), whose effects are 0.5-3 sigma
 (docs/discovery-studies.md, "Session 35: MFB discovery with the effects
-hidden in the simulator"; docs/discovery.md, "Session 36: MFB discovery
+hidden in the simulator"; docs/discovery-studies.md, "Session 36: MFB discovery
 judged with the bar's declared calibration").
 """
 

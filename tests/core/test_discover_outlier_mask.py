@@ -9,7 +9,7 @@
 - :data:`core.discover.OUTLIER_STRUCTURE_REVERSAL_TRAVEL` (on since session 36): the structure test of set-aside
   rows tries the reversed approach as a travel along the approach (``flag * d.n``) beside the 0/1 step.
 
-docs/discovery.md, "Session 36: the outlier screen's masking".
+docs/discovery-studies.md, "Session 36: the outlier screen's masking".
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@
   that cause, and says whether the refused cause was judged again later without it. Bookkeeping only: no cause,
   confidence or workpiece moves.
 
-docs/discovery.md, "Session 36: refusals made beside a cause later dropped".
+docs/discovery-studies.md, "Session 36: refusals made beside a cause later dropped".
 """
 
 from __future__ import annotations

@@ -122,7 +122,7 @@ def test_a_scale_drift_hidden_in_the_machine_is_named_within_its_u95(free):
 #: Draws of the bar's calibration error on the effect-free campaign (below). 30: each costs its discovery alone
 #: (0.3-0.4 s CPU), and 30 is enough for the noise check (every draw, deterministic) and a false-alarm count
 #: that the 5 % aim bounds (below); more would cost the test's budget for a rate the study measures
-#: (docs/discovery.md, "Session 36: MFB discovery judged with the bar's declared calibration").
+#: (docs/discovery-studies.md, "Session 36: MFB discovery judged with the bar's declared calibration").
 DRAWS = 30
 
 
