@@ -22,23 +22,8 @@ import pytest
 
 from hardware.campaign import TOOL_OFFSET_KEY, tool_offset_text
 from scenarios.cli import main
+from tests.scenarios.test_selfcal_joint import MACHINE  # the nmv3000, probe 40 mm off the spindle, 8 um EXX, no noise
 
-MACHINE = """format = "vmt-machine/1"
-name = "nmv-offset40"
-base = "nmv3000"
-errors = "none"
-
-[tool]
-offset_mm = [40, 0, 150]
-
-[probe]
-noise_um = 0.0
-
-[error.EXX]
-table_mm = [-200, -100, 0, 100, 200]
-table_um = [0.0, 8.0, 0.0, -8.0, 0.0]
-interpolation = "cubic"
-"""
 J = (40.0, 0.0, 150.0)
 
 #: um: the identified EXX nodes against the truth at their positions, an offset and a slope removed (the gauge
