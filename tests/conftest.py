@@ -227,6 +227,35 @@ def figures_not_drawn(monkeypatch):
     return seen
 
 
+@pytest.fixture
+def mfb_notes_skipped(monkeypatch):
+    """For one test, every noisy MFB run (:func:`scenarios.mfb.run`, and so ``closed_loop``'s and ``vmt
+    scenario``'s runs) without the two notes that move nothing else of it: the between-node test
+    (:data:`scenarios.mfb.MFB_BETWEEN_NODES` off: no JSON ``between_nodes``) and the model-error statistics
+    where the lack-of-fit gate holds them out of the U95 (``model_error_held=False`` by default: no JSON
+    ``model_error`` then; where the gate opens the share is still computed and widens the U95 as before, only
+    its exact tails ``p`` are left out). Neither draws from the run's generator: theta, the U95, the
+    covariance, the estimate, ``within_u95`` and every other key of the run's JSON are the same doubles (session
+    36, notes on against off: 3-axis seeds 1, 2, 4, 11, 5-axis seed 1, a closed loop from seed 1, and test_mfb_fit's
+    short-wave truth, where the gate opens: the same nine tables entered, the same ``u``, ``z`` and U95 growth, the
+    tables' ``p`` null). About 60 % of a noisy run's CPU (3-axis seed 1: 0.7-0.9 against 1.5-2.2 s). For a
+    test that reads neither note (their own tests: tests/scenarios/test_mfb_between_nodes.py, test_mfb_fit.py,
+    tests/core/test_volumetric.py); a test that binds ``run`` at import keeps the original (import it inside
+    the test, or call ``mfb.run``)."""
+    import functools
+
+    import scenarios.mfb as S
+
+    monkeypatch.setattr(S, "MFB_BETWEEN_NODES", False)
+    orig = S.run
+
+    @functools.wraps(orig)
+    def run(*args, model_error_held: bool = False, **kw):
+        return orig(*args, model_error_held=model_error_held, **kw)
+
+    monkeypatch.setattr(S, "run", run)
+
+
 @pytest.fixture(scope="session")
 def mfb3_noise_free():
     """One noise-free ``mfb-3axis`` run on the default realistic machine, shared by the test files
