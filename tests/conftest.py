@@ -243,18 +243,31 @@ def mfb_notes_skipped(monkeypatch):
     test that reads neither note (their own tests: tests/scenarios/test_mfb_between_nodes.py, test_mfb_fit.py,
     tests/core/test_volumetric.py); a test that binds ``run`` at import keeps the original (import it inside
     the test, or call ``mfb.run``)."""
+    _skip_mfb_notes(monkeypatch)
+
+
+@pytest.fixture(scope="module")
+def mfb_notes_skipped_module():
+    """:func:`mfb_notes_skipped` for a whole test module (``pytestmark = pytest.mark.usefixtures(...)``): its module
+    fixtures' runs too, from its first test to its last."""
+    with pytest.MonkeyPatch.context() as mp:
+        _skip_mfb_notes(mp)
+        yield
+
+
+def _skip_mfb_notes(mp) -> None:
     import functools
 
     import scenarios.mfb as S
 
-    monkeypatch.setattr(S, "MFB_BETWEEN_NODES", False)
+    mp.setattr(S, "MFB_BETWEEN_NODES", False)
     orig = S.run
 
     @functools.wraps(orig)
     def run(*args, model_error_held: bool = False, **kw):
         return orig(*args, model_error_held=model_error_held, **kw)
 
-    monkeypatch.setattr(S, "run", run)
+    mp.setattr(S, "run", run)
 
 
 @pytest.fixture(scope="session")
