@@ -170,7 +170,7 @@ def test_wrong_chain_machine_file_is_named_by_its_path(tmp_path, capsys):
                            "mfb-3axis plan's")
 
 
-def test_closed_loop_reports_progress(tmp_path):
+def test_closed_loop_reports_progress(tmp_path, mfb_notes_skipped):
     """main's --apply-comp loop (about 5 s) drew no progress line: closed_loop now reports over its campaigns."""
     from scenarios import mfb as S
 
@@ -333,7 +333,7 @@ def test_an_mfb_state_applies_with_any_tool():
     assert probe_offsets_check(SimpleNamespace(source="o.json", identified_on=None), (0, 0, 1)) == (None, None)
 
 
-def test_the_mfb_records_its_machine_and_styli():
+def test_the_mfb_records_its_machine_and_styli(mfb_notes_skipped):
     from core.state import loads_estimate
     from scenarios import mfb as S
 
@@ -365,7 +365,7 @@ def test_plan_grid_usage_shows_the_stylus_radius_required(capsys):
     assert "[--stylus-r-mm" not in capsys.readouterr().out                  # (restored after each formatting)
 
 
-def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys, tmp_path):
+def test_noise_free_mfb_run_says_no_u95_instead_of_nan(capsys, tmp_path, mfb_notes_skipped):
     """'vmt scenario mfb-3axis --noise-um 0 --mc 0' with a bar calibration of u 0 computes no uncertainty: the
     max U95 column printed nan (review28); now 'n/a' in every row and one line saying why. Noise-free with the
     default calibration u (session 29): the calibration's U95, linear, and a line saying so. With noise,

@@ -10,7 +10,7 @@ from scenarios import comprule_study as cs
 from scenarios import mfb
 
 
-def test_the_first_order_residual_is_the_exact_closed_loops_on_the_study_machine(tmp_path):
+def test_the_first_order_residual_is_the_exact_closed_loops_on_the_study_machine(tmp_path, mfb_notes_skipped):
     """Seed 1, the realistic study machine (all 21 errors): the study's shipped-rule residual (the exact
     deviation before minus the chain's first-order map of the applied tables) against the closed loop
     (the volumetric controller in front of the exact machine, scenarios.mfb.closed_loop). Tolerance 0.01 um:
@@ -36,7 +36,7 @@ def test_the_first_order_residual_is_the_exact_closed_loops_on_the_study_machine
     assert len({round(max(x[k + "_um"]), 6) for k in cs.RULES}) == 4
 
 
-def test_a_perfect_machine_before_is_zero_and_every_value_is_the_estimate_mapped():
+def test_a_perfect_machine_before_is_zero_and_every_value_is_the_estimate_mapped(mfb_notes_skipped):
     """--errors none, seed 1: nothing before (the exact machine has no error); after every value the
     residual is the estimate's own map, 2.74 um in X (the closed loop's, tests/scenarios/
     test_comp_closed_loop.py, 2.738); the shipped rule leaves less on every axis."""

@@ -12,7 +12,7 @@ from core.exceptions import PlanError
 from core.units import MM
 
 
-def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path, capsys):
+def test_cli_json_keys_and_the_compensation_closes_the_loop(tmp_path, capsys, mfb_notes_skipped):
     """--comp writes LinuxCNC files and vmt-comp/1; --apply-comp applies them to the
     virtual machine (LinuxCNC's per-joint compensation as its motion controller
     does it, and a volumetric controller with the 21 tables), runs a new campaign
@@ -174,7 +174,7 @@ def test_noise_free_recovery_with_the_placements_drawn_is_the_models_floor(plan)
     assert d3["max_dev_um"] > 0.01 and d3["max_dev_urad"] > 0.1, (d3["max_dev_um"], d3["max_dev_urad"])
 
 
-def test_u95_covers_the_truth_and_is_useful():
+def test_u95_covers_the_truth_and_is_useful(mfb_notes_skipped):
     # probing noise (0.25 um k=2), the bar's true geometry off its calibration
     # by a draw of u_cal, and each placement off by a draw of U_PLACE (roll
     # included), two seeds: 252 identified values (error tables at the nodes
@@ -344,7 +344,7 @@ def test_a_declared_ripple_term_is_what_the_simulator_does_to_the_node_errors():
     assert b.doc["estimate"]["method"].endswith("declared ripples (type B, unknown phase): EXX, EZZ")
 
 
-def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo():
+def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo(mfb3_noise_free):
     """Known answer: with no other input, one ripple of uniform phase moves each value by
     ``C0 cos phi + C1 sin phi = R sin(phi + psi)``, ``R = |C_i|``: an arcsine law whose 95 % symmetric interval
     is ``+-R sin(0.95 pi / 2) = +-0.99692 R``, and whose standard deviation is ``R / sqrt(2)`` (the linear U95,
@@ -352,9 +352,9 @@ def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo():
     draws: the percentile's error near the arcsine's edge is ~0.3 % of R (its density there is 1 / (pi R
     sqrt(1 - 0.997^2)), 4 R^-1); bound 1 %. Without ripples the Monte Carlo's numbers stay the same doubles."""
     from core import volumetric as vol
-    from scenarios.mfb import default_machine, run
+    from scenarios.mfb import default_machine
 
-    r = run("mfb-3axis", seed=1, noise_um=0, mc_runs=0)
+    r = mfb3_noise_free[0]  # run("mfb-3axis", seed=1, noise_um=0, mc_runs=0), read only
     cfg, _ = default_machine(r.plan.machine)
     res_g = vol.identify_volumetric(r.meas, cfg.chain, r.plan.nodes, dict(cfg.rotary_points_R_m))
     C = vol.ripple_columns(res_g, r.meas, cfg.chain, "EXX", 0.4e-6, 0.010, dict(cfg.rotary_points_R_m))
@@ -374,13 +374,13 @@ def test_a_declared_ripple_alone_is_an_arcsine_in_the_monte_carlo():
     assert np.array_equal(u0.lo95, u1.lo95) and np.array_equal(u0.u_lin, u1.u_lin)
 
 
-def test_ripple_columns_and_declared_ripple_refuse_bad_input():
+def test_ripple_columns_and_declared_ripple_refuse_bad_input(mfb3_noise_free):
     from core import volumetric as vol
     from core.exceptions import ConfigError
     from scenarios.cli import main
     from scenarios.mfb import run
 
-    r = run("mfb-3axis", seed=1, noise_um=0, mc_runs=0)
+    r = mfb3_noise_free[0]  # run("mfb-3axis", seed=1, noise_um=0, mc_runs=0), read only
     for sym, a, p in (("EXY2", 1e-6, 0.01), ("EC0Y", 1e-6, 0.01), ("EXX", 1e-6, 0.0), ("EXX", np.nan, 0.01)):
         with pytest.raises(ConfigError):
             vol.ripple_columns(r.result, r.meas, "vmc-3axis", sym, a, p)
@@ -397,7 +397,7 @@ def test_ripple_columns_and_declared_ripple_refuse_bad_input():
     assert main(["scenario", "pin-circle", "--declared-ripple-urad-mm", "EBX=1:10"]) == 2
 
 
-def test_cli_declares_the_ripple_and_the_note_names_only_the_undeclared(tmp_path, capsys):
+def test_cli_declares_the_ripple_and_the_note_names_only_the_undeclared(tmp_path, capsys, mfb_notes_skipped):
     """The realistic set's six 10 mm ripples: EXX, EYY, EZZ (um) and EBX, EBZ, ECY (urad). Declaring the three
     positioning ones on the CLI puts them in the JSON (their units) and the note names only the three angular
     ones; the U95 of EXX is wider than the undeclared run's (same seed: the same identification)."""
@@ -420,7 +420,7 @@ def test_cli_declares_the_ripple_and_the_note_names_only_the_undeclared(tmp_path
     assert np.all(u1 >= u0) and np.max(u1 - u0) > 0.1
 
 
-def test_5axis_compensation_closes_the_loop(tmp_path):
+def test_5axis_compensation_closes_the_loop(tmp_path, mfb_notes_skipped):
     """The Mikron's X, Y, Z all carry the tool: the axes whose files the old
     convention doubled. Both controllers bring the true positioning error
     down by > 10x and within the identification's U95 at the nodes. A U95 is
@@ -680,7 +680,7 @@ def test_reversal_calibration_file_round_trip_and_cli(tmp_path, capsys):
     assert main(["scenario", "pin-circle", "--bar-calibration", str(f)]) == 2
 
 
-def test_a_given_calibration_is_what_the_identification_uses(mfb3_noise_free):
+def test_a_given_calibration_is_what_the_identification_uses(mfb3_noise_free, mfb_notes_skipped):
     """Item 7's path: the bar's calibration replaces the declared one. A calibration
     that is the true bar moved rigidly (x shifted 2 um, tilted 3 / 4 urad about z / y: a
     set-up's pose absorbs it exactly) identifies what the declared, exact calibration
@@ -1384,7 +1384,7 @@ def test_a_hole_sets_gain_is_cut_from_the_whole_programs():
     mfb._GAINS.clear()
 
 
-def test_noise_free_run_has_the_u95_of_its_bar_calibration_by_re_identification():
+def test_noise_free_run_has_the_u95_of_its_bar_calibration_by_re_identification(mfb3_noise_free):
     """A noise-free run with the bar calibration's u (the default) and no Monte Carlo computes its U95 (none
     before session 29: ``unc`` needed noise, --mc or a declared ripple), the linear propagation of u_cal
     alone. Checked against a hand-built propagation that uses neither K nor the input maps: each of the 36
@@ -1405,7 +1405,7 @@ def test_noise_free_run_has_the_u95_of_its_bar_calibration_by_re_identification(
     from core import mfb as core_mfb, volumetric as vol
     from scenarios.mfb import U_CAL_UM, default_machine, run
 
-    r = run("mfb-3axis", seed=1, noise_um=0.0, mc_runs=0)
+    r = mfb3_noise_free[0]  # run("mfb-3axis", seed=1, noise_um=0.0, mc_runs=0), read only
     assert r.unc is not None and r.unc.runs == 0
     assert r.doc["u95_inputs"] == ["bar calibration"] and r.doc["u95_method"].startswith("linear")
     cfg, _ = default_machine(r.plan.machine)

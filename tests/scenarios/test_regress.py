@@ -22,6 +22,11 @@ SELFCAL = STUDIES / "regress-selfcal-nmv3000.toml"
 MFB3 = STUDIES / "regress-mfb-3axis-vmc.toml"
 POSITIONING = STUDIES / "regress-iso230-2-vmc-x.toml"
 
+#: The MFB studies' runs without the two notes no regress check reads (conftest mfb_notes_skipped: the errors, their
+#: U95 and the estimate's covariance, all that scenarios.regress._mfb takes, are the same doubles): about half of
+#: each run's CPU, five runs here.
+pytestmark = pytest.mark.usefixtures("mfb_notes_skipped_module")
+
 
 # --------------------------------------------------------------------------- JUnit schema rules
 # The rules of the common JUnit schema (Windy Road JUnit.xsd, Apache Ant's XMLJUnitResultFormatter format,
