@@ -83,6 +83,9 @@ def test_gen_a_reseat_hysteresis_named_beside_turned_outliers_reads_unexplained(
     from scenarios.blind import gen_a
     from scenarios.hidden import blind_outcome
 
+    # since session 36 INSIDE_SMOOTH_REFUSED refuses 1279's bump (nothing beyond the smooth map), and the campaign reads
+    # `unexplained` without this rule: the rule's own mechanism is tested with that one off, the two together after
+    monkeypatch.setattr(D, "INSIDE_SMOOTH_REFUSED", False)
     monkeypatch.setattr(D, "NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED", False)
     off = blind_outcome(gen_a, "reseat_hysteresis", seed, generator="gen_a")
     assert off.cause == named and not off.confident and off.findings == (named, "outlier"), off
@@ -91,3 +94,7 @@ def test_gen_a_reseat_hysteresis_named_beside_turned_outliers_reads_unexplained(
     assert on.cause == "unexplained" and on.cause in on.acceptable, on
     assert on.findings == ("unexplained",) + off.findings, on.findings
     assert np.array_equal([on.wp_ext_um, on.wp_u95_um], [off.wp_ext_um, off.wp_u95_um], equal_nan=True)
+    if seed == 1279:
+        monkeypatch.setattr(D, "INSIDE_SMOOTH_REFUSED", True)
+        monkeypatch.setattr(D, "NAMED_BESIDE_TURNED_OUTLIERS_UNEXPLAINED", False)
+        assert blind_outcome(gen_a, "reseat_hysteresis", seed, generator="gen_a").findings == ("unexplained", "outlier")

@@ -140,7 +140,13 @@ def test_gen_a_thermal_drift_6105_extended_workpiece_within_its_check():
 
 @pytest.mark.slow
 def test_gen_a_thermal_drift_6105_beyond_its_check_without_the_held_out_entrant(monkeypatch):
+    # with the round c_drift won reopened once the rival check drops it (DROPPED_ROUND_REOPENED, on since session 36)
+    # the campaign reads thermal_drift without the entrant rule too: session 24's failure is shown with that one off
+    monkeypatch.setattr(D, "DROPPED_ROUND_REOPENED", False)
     monkeypatch.setattr(D, "ENTRANT_FORM_HELD_OUT", False)
     o = _td6105()
     assert o.cause == "c_drift" and not o.confident, o
     assert o.wp_ext_um > o.wp_base_um + o.wp_u95_um, o  # session 24's engine: 4.32 > 1.76 + 1.26
+    monkeypatch.setattr(D, "DROPPED_ROUND_REOPENED", True)
+    o = _td6105()
+    assert o.cause == "thermal_drift" and o.wp_ext_um <= o.wp_base_um + o.wp_u95_um, o  # 0.41 against 1.76 + 0.57
