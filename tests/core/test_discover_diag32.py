@@ -84,10 +84,12 @@ def test_gen_a_part_change_9707_not_confidently_misnamed():
 
 
 @pytest.mark.slow
-def test_gen_a_part_change_9707_the_target_time_explains_the_rows():
+def test_gen_a_part_change_9707_the_target_time_explains_the_rows(monkeypatch):
     """Session 33: wall6's middle target's time, every row kept, has a lower BIC than two free values for rows 17
     and 66 (delta -0.99 with the 2 log 2 of the two columns tried; -2.38 without): ``outlier``, hedged, the same rows
-    set aside. Tolerance 0.01 on a BIC difference of ~1 in values of ~-4700: far beyond BLAS rounding."""
+    set aside. Tolerance 0.01 on a BIC difference of ~1 in values of ~-4700: far beyond BLAS rounding. Held with
+    session 36's travel column off (OUTLIER_STRUCTURE_REVERSAL_TRAVEL: a third column tried costs its log 2)."""
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", False)
     log, _ = gen_a.generate("part_change", 9707)
     cause, conf, d = _read(log)
     assert cause == "outlier" and not conf and d.outlier_rows == (17, 66)
@@ -128,15 +130,24 @@ def test_gen_a_reseat_hysteresis_9702_not_confidently_named():
 
 
 @pytest.mark.slow
-def test_gen_a_reseat_hysteresis_9702_the_reversed_approach_explains_the_rows():
+def test_gen_a_reseat_hysteresis_9702_the_reversed_approach_explains_the_rows(monkeypatch):
     """Session 33: one column marking the touches whose approach reversed the move before explains the five rows
-    better than five free values (delta BIC -19.1): ``outlier``, hedged, the same rows."""
+    better than five free values (delta BIC -19.1): ``outlier``, hedged, the same rows. Since session 36 the reversal
+    as a travel along the approach (OUTLIER_STRUCTURE_REVERSAL_TRAVEL) is tried beside it and explains them better,
+    the reading the same."""
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", False)
     log, _ = gen_a.generate("reseat_hysteresis", 9702)
     cause, conf, d = _read(log)
     assert cause == "outlier" and not conf and d.outlier_rows == (159, 167, 173, 214, 274)
     s = _finding(d, "outlier").evidence["structure"]
     assert s["explains"] and s["column"] == "reversed approach" and s["tried"] == ["reversed approach"]
     assert s["delta_bic"] == pytest.approx(-19.09, abs=0.01)
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", True)
+    cause, conf, d = _read(log)
+    assert cause == "outlier" and not conf and d.outlier_rows == (159, 167, 173, 214, 274)
+    s = _finding(d, "outlier").evidence["structure"]
+    assert s["explains"] and s["column"] == "reversed approach travel"
+    assert s["tried"] == ["reversed approach", "reversed approach travel"] and s["delta_bic"] < -19.09
 
 
 # 3. gen_b stylus_bending 9702 ---------------------------------------------------------------------------------------

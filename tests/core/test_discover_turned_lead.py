@@ -150,6 +150,9 @@ def test_gen_a_reseat_6306_retry_after_no_trigger_is_no_dust(monkeypatch):
     assert np.array_equal(t.d_prev_R[k], d164) and np.all(np.isnan(t.d_prev_R[0]))
     assert np.array_equal(t.d_prev_R[1], t.d_R[0])
 
+    # since session 36 the reversal as a travel (OUTLIER_STRUCTURE_REVERSAL_TRAVEL) hedges the `outlier` reading on its
+    # own; this test's subject, the turn counted through the no-trigger row, is held with it off
+    monkeypatch.setattr(D, "OUTLIER_STRUCTURE_REVERSAL_TRAVEL", False)
     monkeypatch.setattr(D, "TURN_THROUGH_NO_TRIGGER", False)
     off = blind_outcome(gen_a, "reseat_hysteresis", 6306, generator="gen_a")
     assert off.cause == "outlier" and off.confident, off
