@@ -25,3 +25,19 @@ def same_len(**arrays) -> int:
     if len(set(lens.values())) > 1:
         raise ConfigError("length mismatch: " + ", ".join(f"{k}={v}" for k, v in lens.items()))
     return next(iter(lens.values()))
+
+
+def outlier_mask(outlier_rows, n: int) -> np.ndarray:
+    """(n,) bool, True at the report's outlier rows (0-based); an index outside 0..n-1 is refused."""
+    bad = np.zeros(n, bool)
+    rows = np.asarray(list(outlier_rows), dtype=int)
+    if rows.size and (rows.min() < 0 or rows.max() >= n):
+        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
+    bad[rows] = True
+    return bad
+
+
+def check_directions(direction: np.ndarray) -> None:
+    """ConfigError unless every reading's approach direction is +1 or -1."""
+    if not np.all(np.isin(direction, (1, -1))):
+        raise ConfigError("direction: each reading's must be +1 or -1")

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import ConfigError
-from viz.checks import check_array, same_len
+from viz.checks import check_array, check_directions, outlier_mask, same_len
 from core.iso import symbol as iso_symbol
 
 PROFILE_MAGNIFICATION = 2500.0  # self-calibration paper, Fig. 9(a), (c)
@@ -579,16 +579,6 @@ def errors_figure(errors: Mapping[str, Mapping],
 
 
 # --- discovery figures ------------------------------------------------------
-def _outlier_mask(outlier_rows, n: int) -> np.ndarray:
-    """(n,) bool, True at the report's outlier rows (0-based); an index outside 0..n-1 is refused."""
-    bad = np.zeros(n, bool)
-    rows = np.asarray(list(outlier_rows), dtype=int)
-    if rows.size and (rows.min() < 0 or rows.max() >= n):
-        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
-    bad[rows] = True
-    return bad
-
-
 def residuals_figure(t_s, approach_deg, residual_um, *, outlier_rows: Sequence[int] = (),
                      title: str = "Residuals of the baseline model"):
     """Discovery residuals against campaign time and approach angle.
@@ -608,7 +598,7 @@ def residuals_figure(t_s, approach_deg, residual_um, *, outlier_rows: Sequence[i
     a = _arr("approach_deg", approach_deg, (-1,))
     r = _arr("residual_um", residual_um, (-1,))
     n = _same_len(t_s=t, approach_deg=a, residual_um=r)
-    bad = _outlier_mask(outlier_rows, n)
+    bad = outlier_mask(outlier_rows, n)
     fig = _figure(9.0, 3.6)
     ax1, ax2 = fig.subplots(1, 2, sharey=True)
     for ax, xv, xl in ((ax1, t, "t / s"), (ax2, a, "approach angle θ / °")):
@@ -753,9 +743,8 @@ def positioning_residuals_figure(t_s, target, direction, residual, *, unit: str 
     s = _arr("direction", direction, (-1,))
     r = _arr("residual", residual, (-1,))
     n = _same_len(t_s=t, target=p, direction=s, residual=r)
-    if not np.all(np.isin(s, (1, -1))):
-        raise ConfigError("direction: each reading's must be +1 or -1")
-    bad = _outlier_mask(outlier_rows, n)
+    check_directions(s)
+    bad = outlier_mask(outlier_rows, n)
     fig = _figure(9.0, 3.6)
     ax1, ax2 = fig.subplots(1, 2, sharey=True)
     for ax, xv, xl in ((ax1, t, time_label), (ax2, p, target_label)):

@@ -57,7 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from core.exceptions import ConfigError
-from viz.checks import check_array, same_len
+from viz.checks import check_array, check_directions, outlier_mask, same_len
 from core.iso import symbol as iso_symbol
 
 # --- entity paths (mirror the frame tree) -----------------------------------
@@ -584,9 +584,7 @@ def log_residuals(rec, t_s, approach_deg, residual_um, *, outlier_rows: Sequence
     a = _arr("approach_deg", approach_deg, (-1,))
     r = _arr("residual_um", residual_um, (-1,))
     n = _same_len(t_s=t, approach_deg=a, residual_um=r)
-    rows = np.asarray(list(outlier_rows), dtype=int)
-    if rows.size and (rows.min() < 0 or rows.max() >= n):
-        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
+    rows = np.flatnonzero(outlier_mask(outlier_rows, n))
     order_t = np.argsort(t, kind="stable")
     order_a = np.argsort(a, kind="stable")
 
@@ -605,7 +603,6 @@ def log_residuals(rec, t_s, approach_deg, residual_um, *, outlier_rows: Sequence
     send("vs_time", by_time, order_t, _BLUE, "residual / µm")
     send("vs_approach", by_angle, order_a, _BLUE, "residual / µm")
     if rows.size:
-        rows = np.unique(rows)
         send("outliers_vs_time", by_time, rows[np.argsort(t[rows], kind="stable")], _RED,
              "outlier / µm")
         send("outliers_vs_approach", by_angle, rows[np.argsort(a[rows], kind="stable")], _RED,
@@ -643,17 +640,13 @@ def log_positioning_residuals(rec, t, target, direction, residual, *, outlier_ro
     s = _arr("direction", direction, (-1,))
     r = _arr("residual", residual, (-1,))
     n = _same_len(t=tt, target=p, direction=s, residual=r)
-    if not np.all(np.isin(s, (1, -1))):
-        raise ConfigError("direction: each reading's must be +1 or -1")
+    check_directions(s)
     if target_unit not in ("mm", "deg"):
         raise ConfigError(f"target_unit: 'mm' or 'deg', got {target_unit!r}")
     if not clock and not np.array_equal(tt, np.round(tt)):
         raise ConfigError("t: without a clock it is the reading order, whole numbers")
-    rows = np.asarray(list(outlier_rows), dtype=int)
-    if rows.size and (rows.min() < 0 or rows.max() >= n):
-        raise ConfigError(f"outlier_rows: index out of range 0..{n - 1}")
-    bad = np.zeros(n, bool)
-    bad[rows] = True
+    bad = outlier_mask(outlier_rows, n)
+    rows = np.flatnonzero(bad)
 
     def by_time(idx):
         return (rr.TimeColumn("campaign_time", duration=tt[idx]) if clock
@@ -676,7 +669,6 @@ def log_positioning_residuals(rec, t, target, direction, residual, *, outlier_ro
             send(f"vs_time_{word}", by_time, tt, idx, color, name)
             send(f"vs_target_{word}", by_target, p, idx, color, name)
     if rows.size:
-        rows = np.unique(rows)
         send("outliers_vs_time", by_time, tt, rows, _BLACK, f"outlier / {unit}")
         send("outliers_vs_target", by_target, p, rows, _BLACK, f"outlier / {unit}")
 
