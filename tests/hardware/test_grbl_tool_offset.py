@@ -32,6 +32,7 @@ from hardware.campaign import (ProbeSettings, parse_tool_offset, plan_steps, run
 from hardware.emulator import ControllerConfig, Faults, GrblEmulator, TcpServer
 from hardware.grbl import GrblBackend, GrblClient, parse_prb
 from scenarios.cli import main
+from tests.cli_helpers import one_line_error
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).parent / "data" / "grbl-1.1h"
@@ -72,14 +73,6 @@ def _shifted_plan(plan, J_mm):
     for c, v in zip(("Xn_mm", "Yn_mm", "Zn_mm"), J_mm):
         cols[c] = cols[c] + v
     return make_log(cols, dict(plan.meta))
-
-
-def _one_line_refusal(capsys, *words):
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in err, err
-    return err
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -208,7 +201,7 @@ def test_closed_loop_emulator_with_a_known_tool_length(tmp_path, capsys):
     # imported without J against the tip-centre plan: refused, naming a line, nothing written
     bad = tmp_path / "bad.csv"
     assert main(["import", "grbl", str(tr), "--plan", str(plan_path), "--out", str(bad)]) == 2
-    _one_line_refusal(capsys, "is not a touch of plan row 0", "14.450 mm off its approach line, -150.125 mm along it",
+    one_line_error(capsys, "is not a touch of plan row 0", "14.450 mm off its approach line, -150.125 mm along it",
                       "or its controller's machine coordinates are the spindle's (give the probe's --tool-offset-mm)")
     assert not bad.exists()
     # and against the plan in the controller's coordinates: the log without the option, off by J
@@ -260,7 +253,7 @@ def test_resume_with_another_J_is_refused_and_the_partial_log_is_untouched(tmp_p
                                                                      "12.5,-7.25,150.0"),
                             ([], "the resume gives no --tool-offset-mm (J = 0)")):
             assert main(_probe(srv.url, plan_path, out, "--resume", *other)) == 2
-            _one_line_refusal(capsys, "not resumed, nothing moved, the log kept",
+            one_line_error(capsys, "not resumed, nothing moved, the log kept",
                               "its tool_offset_mm line says J = 12.5,-7.25,150.125 mm", said)
             assert out.read_bytes() == before and emu.probes == probes      # nothing probed, not a byte changed
         assert main(_probe(srv.url, plan_path, out, "--resume", "--tool-offset-mm", "12.500,-7.25,150.125")) == 0
@@ -281,7 +274,7 @@ def test_a_log_begun_without_J_refuses_a_resume_with_one(tmp_path, capsys):
         capsys.readouterr()
         before = out.read_bytes()
         assert main(args + ["--resume", "--tool-offset-mm", "0,0,150"]) == 2
-        _one_line_refusal(capsys, "it has no tool_offset_mm line: begun with none applied (J = 0)",
+        one_line_error(capsys, "it has no tool_offset_mm line: begun with none applied (J = 0)",
                           "--tool-offset-mm 0.0,0.0,150.0")
         assert out.read_bytes() == before
         assert main(args + ["--resume", "--tool-offset-mm", "0,0,0"]) == 0    # J = 0 is what it was begun with
@@ -301,7 +294,7 @@ def test_a_tool_offset_that_is_not_three_finite_numbers_is_refused_everywhere(tm
     ]
     for cmd in cmds:
         assert main(cmd) == 2, cmd
-        _one_line_refusal(capsys, f"--tool-offset-mm {value!r}: expected X,Y,Z, three finite numbers, mm")
+        one_line_error(capsys, f"--tool-offset-mm {value!r}: expected X,Y,Z, three finite numbers, mm")
         assert not out.exists()
 
 
@@ -314,19 +307,19 @@ def test_a_J_off_the_controllers_step_virtual_and_linuxcnc_are_refused(tmp_path,
                            limits="X-20:200,Y-20:200,Z100:250", safe_z="180")) == 2
     finally:
         srv.stop()
-    _one_line_refusal(capsys, "its Z 150.0005 mm is not a multiple of the controller's printing step 0.001 mm",
+    one_line_error(capsys, "its Z 150.0005 mm is not a multiple of the controller's printing step 0.001 mm",
                       "nothing probed, no log written")
     assert not out.exists() and emu.probes == 0
     assert main(["import", "grbl", str(CAMPAIGN), "--plan", str(plan_path), "--out", str(out),
                  "--tool-offset-mm", "0,0,0.0005"]) == 2
-    _one_line_refusal(capsys, "its Z 0.0005 mm is not a multiple", "nothing written")
+    one_line_error(capsys, "its Z 0.0005 mm is not a multiple", "nothing written")
     assert main(_probe("virtual:", plan_path, out, "--tool-offset-mm", "0,0,150")) == 2
-    _one_line_refusal(capsys, "the in-process virtual machine (virtual:)")
+    one_line_error(capsys, "the in-process virtual machine (virtual:)")
     pf = tmp_path / "probe.txt"
     pf.write_text("10 10 0\n")
     assert main(["import", "linuxcnc", str(pf), "--plan", str(plan_path), "--out", str(out),
                  "--tool-offset-mm", "0,0,150"]) == 2
-    _one_line_refusal(capsys, "--tool-offset-mm is for grbl transcripts", "G43")
+    one_line_error(capsys, "--tool-offset-mm is for grbl transcripts", "G43")
     assert not out.exists()
 
 
@@ -403,7 +396,7 @@ def test_the_documented_worked_case_runs_against_our_emulator(tmp_path, monkeypa
         bare = [a for a in probe if a not in ("--tool-offset-mm", "0,0,150")]
         bare[bare.index("--out") + 1] = "bare.csv"
         assert main(bare) == 2
-        _one_line_refusal(capsys, "row 0 (target 'r0c0'): approach [10.0, 10.0, 10.0] mm is outside the soft "
+        one_line_error(capsys, "row 0 (target 'r0c0'): approach [10.0, 10.0, 10.0] mm is outside the soft "
                                   "limits of Z [140.0, 260.0] mm")
         assert not (tmp_path / "bare.csv").exists()
     finally:

@@ -22,6 +22,7 @@ import pytest
 
 from hardware.campaign import TOOL_OFFSET_KEY, tool_offset_text
 from scenarios.cli import main
+from tests.cli_helpers import one_line_error
 from tests.scenarios.test_selfcal_joint import MACHINE  # the nmv3000, probe 40 mm off the spindle, 8 um EXX, no noise
 
 J = (40.0, 0.0, 150.0)
@@ -73,14 +74,6 @@ def _off_truth(x_mm, v_um, truth):
     return float(np.abs(d - A @ np.linalg.lstsq(A, d, rcond=None)[0]).max())
 
 
-def _one_line(capsys, *words):
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "Traceback" not in err, err
-    for w in words:
-        assert w in err, err
-    return err
-
-
 def test_the_logs_J_is_taken_without_the_option_known_answer(logs, tmp_path, capsys):
     bare, with_j, truth = logs
     from_log, given, both = tmp_path / "log.json", tmp_path / "opt.json", tmp_path / "both.json"
@@ -130,7 +123,7 @@ def test_a_conflicting_option_is_refused_and_nothing_is_written(logs, tmp_path, 
     capsys.readouterr()
     for out in (fresh, kept):
         assert _identify(with_j, out, "--tool-offset-mm", given) == 2
-        _one_line(capsys, f"vmt identify: error: --tool-offset-mm {said}: {with_j}'s tool_offset_mm line says its "
+        one_line_error(capsys, f"vmt identify: error: --tool-offset-mm {said}: {with_j}'s tool_offset_mm line says its "
                           "readings were logged with J = 40.0,0.0,150.0 mm; one log holds one J")
     assert not fresh.exists() and kept.read_bytes() == b'{"an earlier report": true}\n'
 
@@ -142,7 +135,7 @@ def test_a_bad_line_in_the_log_is_refused_naming_the_file(logs, tmp_path, capsys
     out = tmp_path / "o.json"
     capsys.readouterr()
     assert _identify(bad, out) == 2
-    _one_line(capsys, f"{bad}: metadata tool_offset_mm {value!r}: ")
+    one_line_error(capsys, f"{bad}: metadata tool_offset_mm {value!r}: ")
     assert not out.exists()
 
 
@@ -180,7 +173,7 @@ def test_every_command_refuses_a_bad_value_in_the_same_words(tmp_path, plan, cap
     capsys.readouterr()
     for name, argv in _commands(tmp_path, plan, value).items():
         assert main(argv) == 2, name
-        err = _one_line(capsys, f"--tool-offset-mm {value!r}: ")
+        err = one_line_error(capsys, f"--tool-offset-mm {value!r}: ")
         assert err.startswith("vmt ") and ": error: " in err, err
         said[name] = err.split(": error: ", 1)[1]
     assert len(set(said.values())) == 1, said
@@ -202,7 +195,7 @@ def test_vcmm_refuses_a_plan_logged_with_another_J_than_its_machines(tmp_path, c
     out = tmp_path / "v.json"
     capsys.readouterr()
     assert main(VCMM + ["--plan", str(plan), "--json", str(out)]) == 2
-    _one_line(capsys, f"vmt vcmm: error: {plan}: its tool_offset_mm line says its touches were logged with J = "
+    one_line_error(capsys, f"vmt vcmm: error: {plan}: its tool_offset_mm line says its touches were logged with J = "
                       "0.0,0.0,100.0 mm, the machine vmc-3axis's [tool] offset_mm is 0.0,0.0,150.0 mm")
     assert not out.exists()
     # the record the runs' JSON gets (scenarios.cli.vcmm._tool_offset): the machine's J, and whether the plan
