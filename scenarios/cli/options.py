@@ -156,13 +156,6 @@ def same_tool_offset(a, b) -> bool:
     return max(abs(float(x) - float(y)) for x, y in zip(a, b)) <= J_EQUAL_MM
 
 
-def tool_offset_mm_text(J) -> str:
-    """J as the log's line writes it (``0.0,0.0,150.0``), in every message that compares two of them."""
-    from hardware.campaign import tool_offset_text
-
-    return tool_offset_text(J)
-
-
 #: Where the J a command used came from (its JSON's ``tool_offset.from``): ``vmt identify``: the log's
 #: ``tool_offset_mm`` line, that line with ``--tool-offset-mm`` giving the same J, the option alone (the log has no
 #: line), neither (J unknown); ``vmt vcmm``: the machine's ``[tool] offset_mm`` (a machine file's, a built-in's
@@ -180,6 +173,7 @@ def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, floa
     naming both values, when it says another (ConfigError). Without the line the option's J is taken; without
     either J is unknown (None, ``"none"``). ``where from``: one of :data:`TOOL_OFFSET_FROM`."""
     from core.exceptions import ConfigError
+    from hardware.campaign import tool_offset_text
 
     J_opt = None if given is None else parse_tool_offset(given)
     J_log = log_tool_offset(log)
@@ -188,8 +182,8 @@ def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, floa
     if J_opt is None:
         return J_log, "log"
     if not same_tool_offset(J_log, J_opt):
-        raise ConfigError(f"--tool-offset-mm {tool_offset_mm_text(J_opt)}: {log.source}'s tool_offset_mm line says "
-                          f"its readings were logged with J = {tool_offset_mm_text(J_log)} mm; one log holds one J: "
+        raise ConfigError(f"--tool-offset-mm {tool_offset_text(J_opt)}: {log.source}'s tool_offset_mm line says "
+                          f"its readings were logged with J = {tool_offset_text(J_log)} mm; one log holds one J: "
                           "give the log's, or leave the option out (the log's is taken)")
     return J_log, "log and option"
 

@@ -73,7 +73,8 @@ def _tool_offset(plan, cfg, path) -> dict:
     refused: the runs would be another tool's touches (its Abbe arms through the machine's angular errors), and
     the log is the record of the tool used."""
     from core.exceptions import ConfigError
-    from scenarios.cli.options import log_tool_offset, same_tool_offset, tool_offset_mm_text, tool_offset_record
+    from hardware.campaign import tool_offset_text
+    from scenarios.cli.options import log_tool_offset, same_tool_offset, tool_offset_record
 
     J_cfg = [round(float(v) * 1e3, 9) for v in cfg.J_m]   # mm, as the files round J (1e-9 mm)
     J_log = log_tool_offset(plan)
@@ -81,8 +82,8 @@ def _tool_offset(plan, cfg, path) -> dict:
         return tool_offset_record(J_cfg, "machine")
     if not same_tool_offset(J_log, J_cfg):
         raise ConfigError(f"{path}: its tool_offset_mm line says its touches were logged with J = "
-                          f"{tool_offset_mm_text(J_log)} mm, the machine {cfg.name}'s [tool] offset_mm is "
-                          f"{tool_offset_mm_text(J_cfg)} mm: the runs would be another tool's touches; give a machine "
+                          f"{tool_offset_text(J_log)} mm, the machine {cfg.name}'s [tool] offset_mm is "
+                          f"{tool_offset_text(J_cfg)} mm: the runs would be another tool's touches; give a machine "
                           "file whose [tool] offset_mm is the log's J")
     return tool_offset_record(J_log, "machine and log")
 
