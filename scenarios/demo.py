@@ -62,6 +62,11 @@ SCREW_UM, SCREW_MM = 1.5, 8.0
 #: machine adds: the report's files, the MFB's processes). A step's number is its place here.
 STEPS = (("machine", 4), ("campaign", 1), ("identify", 2), ("discover", 35), ("hardware", 15), ("mfb", 100),
          ("iso230-2", 1), ("iso230-2 comp", 4), ("vcmm", 20), ("report", 7))
+def _n(key: str) -> int:
+    """The number of step ``key`` (its place in :data:`STEPS`), for the text that names another step."""
+    return [k for k, _ in STEPS].index(key) + 1
+
+
 #: The weights alone, in step order.
 STEP_WEIGHTS = tuple(w for _, w in STEPS)
 #: ``vmt probe``'s soft limits and safe Z for the nmv3000 and the cross pocket (README's probe line), mm.
@@ -147,11 +152,11 @@ def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
     _hardware(machine, probe, art, plan, seed, outp, say, t, res)
     say.head("mfb", "the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
     mfb_json, mfb_machine = _mfb(seed, outp, say)
-    say.head("iso230-2", "ISO 230-2: a positioning test of the Y axis of step 1's nmv3000 (its worn screw)")
+    say.head("iso230-2", f"ISO 230-2: a positioning test of the Y axis of step {_n('machine')}'s nmv3000 (its worn screw)")
     pos_plan, pos_path = _positioning(machine, seed, outp, say)
     say.head("iso230-2 comp", "ISO 230-2 closed loop: the test's LinuxCNC table for Y, loaded, the test run again")
     _positioning_comp(machine, pos_plan, pos_path, seed, outp, say)
-    say.head("vcmm", "virtual CMM: a measurement's uncertainty on the machine as step 6 identified it")
+    say.head("vcmm", f"virtual CMM: a measurement's uncertainty on the machine as step {_n('mfb')} identified it")
     _vcmm(mfb_json, mfb_machine, seed, outp, say)
     say.head("report", "report and recording")
     from scenarios.reports import demo_report
@@ -258,7 +263,7 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
     say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad "
         f"against {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad injected, in the same gauge (eqs 16-17: "
         f"EYX zero at both ends; raw {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f}); the gap is the lobing probe's, "
-        "which this model does not know (step 4)")
+        f"which this model does not know (step {_n('discover')})")
     ad = ident.get("not_covered", {}).get("approach_direction")
     if ad:  # identify's own residual check sees it and says what it biases, beyond the U95
         big = [("EC0Y", ad["shift"]["EC0Y"])] * ("EC0Y" in ad["shift"]) + sorted(
@@ -427,12 +432,13 @@ def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, t, res) -> 
         f"{', '.join(f'{a}{lo:g}:{hi:g}' for a, (lo, hi) in zip('XYZ', PROBE_LIMITS_MM))} mm checked before any "
         f"motion, safe Z {PROBE_SAFE_Z_MM:g} mm, each touch on disk before the next): {run.rows_done} of "
         f"{run.rows_total} touches, {', '.join(f'{k} {v}' for k, v in sorted(run.statuses.items()))} -> {out}")
-    say(f"identified as step 3 (-> {probed_json}): EC0Y {cmp['EC0Y_urad'][1]:+.2f} urad against step 3's "
+    say(f"identified as step {_n('identify')} (-> {probed_json}): EC0Y {cmp['EC0Y_urad'][1]:+.2f} urad against "
+        f"step {_n('identify')}'s "
         f"{cmp['EC0Y_urad'][0]:+.2f} (U95 {cmp['EC0Y_u95_urad']:.2f}), workpiece {cmp['max_workpiece_difference_um']:.1e}"
         f" um apart at most, no identified value moved by more than {cmp['max_difference_over_u95']:.0e} of its "
         f"U95: the touches agree to {cmp['max_touch_difference_um']:.0e} um (the contact searches' "
         "tolerance), as the same machine, part and probe were touched along the same approach lines with the "
-        "same noise draws; what the route adds (the program in machine coordinates, G53 moves via the safe Z, "
+        "same noise draws; what the route adds (the program in machine coordinates, the moves via the safe Z, "
         "the append-only log) moved no touch. A real controller adds its reports' rounding (GRBL: 3 decimals)")
     return cmp
 
@@ -509,7 +515,7 @@ def _positioning(machine, seed: int, outp: Path, say):
     say(f"discover on the test: {', '.join(found) if found else 'none'} (noise {rep['noise_um']['sigma_um']:.2f} um "
         f"from the repeats); the {SCREW_MM:g} mm screw wear sits in the per-target means, which the standard's "
         f"model takes as they are: one point per target cannot show a period of {SCREW_MM:g} mm, the cross "
-        f"pocket's dense walls could (step 4)")
+        f"pocket's dense walls could (step {_n('discover')})")
     return plan, path
 
 
@@ -614,8 +620,9 @@ def _vcmm(mfb_json: Path, truth_machine, seed: int, outp: Path, say) -> dict:
         f"--machine-state {Path(mfb_json).name} (its 21 errors drawn from their covariance each run) and the "
         f"probe's noise, {rep['runs']} runs; beside it, the true machine's measurement (one noise draw):")
     for r in rows:
-        say(f"  {r['name']}: {r['identified_mean']:.5f} {r['unit']} +- {r['U95']:.2f} {r['u_unit']} (U95) as "
-            f"identified, {r['true_measured']:.5f} {r['unit']} on the true machine "
+        d = 5 if r["unit"] in ("mm", "deg") else 2      # (a flatness is in um)
+        say(f"  {r['name']}: {r['identified_mean']:.{d}f} {r['unit']} +- {r['U95']:.2f} {r['u_unit']} (U95) as "
+            f"identified, {r['true_measured']:.{d}f} {r['unit']} on the true machine "
             f"({r['true_minus_mean']:+.2f} {r['u_unit']}, {'inside' if r['inside'] else 'OUTSIDE'} the 95 % interval)")
     say(f"(-> {out}; the task: {task_path}, the shipped block task without its declared limits, which the "
         "state replaces, and without its bore position, a machine-frame position the identification's gauge "
