@@ -130,3 +130,56 @@ def test_steps_are_numbered_by_their_place():
     assert len(set(keys)) == len(keys) and all(w > 0 for _, w in D.STEPS)
     with pytest.raises(ValueError):
         say.head("no such step", "z")
+
+
+def _truth_state(path, cfg, errs, step_mm=25.0, u_um=1e-3):
+    """A ``vmt-estimate/1`` file holding ``errs`` (the truth) itself: every table on nodes every ``step_mm`` over
+    its axis's stroke (axis positions, as an MFB state is), every constant, u ``u_um`` each (um or urad)."""
+    from core import iso
+    from core.state import FORMAT, POSITIONS
+
+    params, vals = [], []
+    for s, f in errs.items():
+        sy = iso.symbol(s)
+        unit = "urad" if sy.angular else "um"
+        if s in ("EC0Y", "EB0Z", "EA0Z"):
+            params.append({"name": s, "symbol": s, "unit": unit})
+            vals.append(float(f(np.zeros(1))[0]) * 1e6)
+            continue
+        lo, hi = cfg.strokes[sy.axis]
+        x = np.linspace(lo, hi, int(round((hi - lo) * 1e3 / step_mm)) + 1)
+        for xv, fv in zip(x, f(x)):
+            params.append({"name": f"{s}@{xv * 1e3:g}mm", "symbol": s, "unit": unit, "at_mm": float(xv * 1e3)})
+            vals.append(float(fv) * 1e6)
+    doc = {"estimate": {"format": FORMAT, "method": "the truth (test)", "positions": POSITIONS,
+                        "interpolation": "cubic-spline", "parameters": params, "values": vals,
+                        "covariance": (np.eye(len(vals)) * u_um ** 2).tolist(),
+                        "identified_on": {"machine": cfg.name, "chain": cfg.chain,
+                                          "probe_offsets_J_mm": [[v * 1e3 for v in cfg.J_m]]}}}
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_vcmm_step_on_the_truth_as_its_state(tmp_path, monkeypatch):
+    """Known answer: step 9 handed a state that IS the MFB scenario's true machine (its 21 error functions on
+    nodes every 25 mm, cubic spline between, u 1e-3 um or urad) and a noise-free probe: every virtual run measures
+    the true machine to the spline's interpolation error (smooth tables: measured 3e-5 to 6e-5 um), so the
+    identified mean is the true machine's measurement to 5e-3 um (asked), and the U95 the state's 1e-3 alone
+    (measured 1e-3 to 2.4e-3; asked < 0.05 um). Checked to fail: the same state with every value 0 (a state
+    not applied, or applied as zero) leaves the true machine's -0.75 um (diameter) and -5.29 um (face
+    distance). (The probe's J is along Z only, so a state placed at the readings instead of reading + J moves
+    these features by 2e-4 um at most: this block cannot tell; test_vcmm_state.py checks the placement.)"""
+    from scenarios.mfb import default_machine
+    from sim.machine import Machine
+
+    cfg, errs = default_machine("vmc-3axis")
+    state = _truth_state(tmp_path / "truth-state.json", cfg, errs)
+    monkeypatch.setattr(D, "VCMM_TASK", D.VCMM_TASK.replace("[mc]", "[probe]\nnoise_um = 0.0\n\n[mc]"))
+    say = _Quiet()
+    doc = D._vcmm(state, Machine(cfg), 2026, tmp_path, say)
+    assert [r["name"] for r in doc["truth"]] == ["bore diameter", "face distance", "top flatness"]
+    for r in doc["truth"]:
+        assert abs(r["true_minus_mean"]) < 5e-3 and r["U95"] < 0.05, r
+    saved = json.loads((tmp_path / "vcmm-block.json").read_text())
+    assert saved["format"] == D.DEMO_VCMM_FORMAT and saved["vcmm"]["format"] == "vmt-vcmm/1"
+    assert (tmp_path / "vcmm-task.toml").read_text().startswith("# vmt demo, step 9")
