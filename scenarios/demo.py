@@ -56,12 +56,15 @@ POSITIONING_NOISE_UM = 0.3
 SCREW_UM, SCREW_MM = 1.5, 8.0
 
 
-#: The steps in order: (key, relative duration for the time left). Measured (session 37, 2 idle cores, CPU s):
-#: machine 0.5, campaign 0.5, identify 1, discover 6, hardware route 3, MFB and its closed loop 8, ISO 230-2
-#: 0.1, its table's closed loop 0.5, virtual CMM 3, report 1.5 (the weights also carry the wall time a busy
-#: machine adds: the report's files, the MFB's processes). A step's number is its place here.
-STEPS = (("machine", 4), ("campaign", 1), ("identify", 2), ("discover", 35), ("hardware", 15), ("mfb", 100),
-         ("iso230-2", 1), ("iso230-2 comp", 4), ("vcmm", 20), ("report", 7))
+#: The steps in order: (key, relative duration for the time left). The weights are the wall seconds of each step
+#: measured in session 37 at load 18 on 2 cores (CPU s in brackets): machine 2.3 (0.6), campaign 0.9 (0.2),
+#: identify 3.6 (0.8), discover 5.1 (0.9), hardware route 16.6 (3.7), MFB and its closed loop 37 (9.3), ISO 230-2
+#: 0.3 (0.1), its table's closed loop 0.3 (0.05), virtual CMM 18.4 (5.1), report 16.5 (4.9). A step's number is
+#: its place here.
+STEPS = (("machine", 2), ("campaign", 1), ("identify", 4), ("discover", 5), ("hardware", 17), ("mfb", 37),
+         ("iso230-2", 1), ("iso230-2 comp", 1), ("vcmm", 18), ("report", 16))
+
+
 def _n(key: str) -> int:
     """The number of step ``key`` (its place in :data:`STEPS`), for the text that names another step."""
     return [k for k, _ in STEPS].index(key) + 1
