@@ -152,7 +152,7 @@ def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
     say.head("discover", "discover: what the model gets wrong, and why")
     d, rep, all_named = _discover(t, truth, log_path, outp, say)
     say.head("hardware", "the hardware route: the same plan through vmt probe's interface, on the same machine")
-    _hardware(machine, probe, art, plan, seed, outp, say, t, res)
+    _hardware(machine, probe, art, plan, seed, outp, say, res)
     say.head("mfb", "the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
     mfb_json, mfb_machine = _mfb(seed, outp, say)
     say.head("iso230-2", f"ISO 230-2: a positioning test of the Y axis of step {_n('machine')}'s nmv3000 (its worn screw)")
@@ -383,7 +383,7 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
     return d, rep, hidden <= named
 
 
-def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, t, res) -> dict:
+def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, res) -> dict:
     """Step 5: step 2's plan written as a plan file (``vmt simulate --plan-only``), probed through the probing
     interface (``hardware.campaign.run_campaign``, the code ``vmt probe`` runs: the program checked against the
     soft limits before any motion, moves via a safe Z with the table turned there, every touch on disk before
@@ -395,6 +395,7 @@ def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, t, res) -> 
     from core.probelog import write_probe_log
     from core.selfcal import self_calibrate
     from core.touches import from_log
+    from core.uncertainty import K
     from hardware.backend import VirtualBackend
     from hardware.campaign import ProbeSettings, run_campaign
     from hardware.virtual import SimMachine
@@ -424,7 +425,7 @@ def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, t, res) -> 
     probed_json = write_json_atomic(outp / "identify-probed.json", json_safe(ident2))
     say.wrote(plan_path, out, probed_json)
     d_um = np.abs(log.positions_mm() - sim_log.positions_mm()) * 1e3
-    u95 = 2.0 * np.sqrt(np.clip(np.diag(res.cov), 0.0, None))
+    u95 = K * np.sqrt(np.clip(np.diag(res.cov), 0.0, None))     # identify.json's U95 (its axes' u95_urad)
     free = u95 > 0                                 # (the gauge's parameters are 0 in both, U95 0)
     ratio = np.abs(res2.theta - res.theta)[free] / u95[free]
     s = res.design.slices["EC0Y"]

@@ -134,6 +134,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     m = re.search(r"EC0Y ([+-][\d.]+) urad against step 3's ([+-][\d.]+) \(U95 ([\d.]+)\).*the touches agree to "
                   r"(\S+) um", text)
     assert m and m[1] == m[2] and float(m[4]) < 1e-5, text
+    assert float(m[3]) == round(ident["axes"]["EC0Y"]["u95_urad"], 2)       # identify.json's U95 of EC0Y
     probed = read_probe_log(out / "cross-pocket-probed.csv")
     assert probed.n == log.n and probed.ok.all() and probed.meta["source"] == "vmt probe"
     # step 8, the ISO 230-2 table's closed loop (test_demo_steps37.py says why 5x): M falls with the table

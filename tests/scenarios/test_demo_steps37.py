@@ -46,7 +46,7 @@ def test_hardware_route_gives_the_same_touches_and_state(tmp_path):
     machine, probe, errs = D._machine(2026, say)
     art, plan, log_path, t, on = D._campaign(machine, probe, 2026, tmp_path, say, angles=(0.0, 75.0, 130.0))
     res = self_calibrate(t, Grid.regular(-0.110, 0.110, 0.022))
-    cmp = D._hardware(machine, probe, art, plan, 2026, tmp_path, say, t, res)
+    cmp = D._hardware(machine, probe, art, plan, 2026, tmp_path, say, res)
     assert cmp["touches"] == 324 and cmp["statuses"] == {"ok": 324}
     assert cmp["max_touch_difference_um"] < 1e-5
     assert cmp["max_difference_over_u95"] < 1e-6
@@ -59,7 +59,7 @@ def test_hardware_route_gives_the_same_touches_and_state(tmp_path):
     assert ident["format"] == "vmt-identify/1" and ident["estimate"]["identified_on"]["probe_offsets_J_mm"] == [
         [0.0, 0.0, 150.0]]
     # a second demo into the same folder starts a new log (vmt probe refuses an existing one without --resume)
-    again = D._hardware(machine, probe, art, plan, 2026, tmp_path, say, t, res)
+    again = D._hardware(machine, probe, art, plan, 2026, tmp_path, say, res)
     assert again["touches"] == 324 and again["max_touch_difference_um"] < 1e-5
 
 
