@@ -156,6 +156,8 @@ def test_demo_end_to_end(tmp_path, capsys):
     # the README's figures of the demo are the ones it printed (a figure there must not drift from the demo)
     section = readme_demo_section()
     missing = [p for p in readme_demo_phrases(text, out) if p not in section]
+    whole = " ".join(readme_text().split())
+    missing += [p for p in readme_elsewhere_phrases(text, out) if p not in whole]
     assert not missing, missing
     # every JSON names its format (docs/formats.md), the nested reports theirs
     assert [ident["format"], disc["format"], mfb["format"], loop["format"], pos["format"], cl["format"],
@@ -189,12 +191,31 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert not (tmp_path / "v.json").exists()
 
 
-def readme_demo_section() -> str:
-    """README's "What `make demo` shows", its whitespace collapsed (the text wraps anywhere)."""
+def readme_text() -> str:
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
-    return " ".join(text.split("### What `make demo` shows", 1)[1].split("\n## ", 1)[0].split())
+    return (Path(__file__).resolve().parents[2] / "README.md").read_text()
+
+
+def readme_demo_section() -> str:
+    """README's "What `make demo` shows", its whitespace collapsed (the text wraps anywhere)."""
+    return " ".join(readme_text().split("### What `make demo` shows", 1)[1].split("\n## ", 1)[0].split())
+
+
+def readme_elsewhere_phrases(text: str, out) -> list[str]:
+    """The demo's figures README quotes outside its demo section ("`vmt identify` on a simulated cross-pocket
+    log": what the lobing biases), built from the demo's print and its identify.json."""
+    hidden = re.search(r"the hidden 2-lobe \(([\d.]+) um\) alone moves EC0Y by ([\d.]+) urad", text)
+    visible = re.search(r"its visible part \(what the residuals show\) moves EC0Y by ([\d.]+) urad", text)
+    worst = re.search(r"at its worst phase moves EC0Y by ([\d.]+) urad", text)
+    amp = re.search(r"a pre-travel lobing of order 2, ~([\d.]+) um", text)
+    assert hidden and visible and worst and amp, text
+    ident = json.loads((out / "identify.json").read_text())
+    ecy = ident["not_covered"]["approach_direction"]["shift"]["ECY"]["worst_phase"]
+    h, v, w = float(hidden[2]), float(visible[1]), float(worst[1])
+    return [f"the demo's 2-lobe moves EC0Y by {h:.1f} µrad where its visible part says {v:.1f}",
+            f"the demo finds {amp[1]} µm of its {hidden[1]} µm 2-lobe: EC0Y {w:.1f} µrad holds the {h:.1f}, ECY "
+            f"{ecy:.1f} does not hold"]
 
 
 def readme_demo_phrases(text: str, out) -> list[str]:
