@@ -10,14 +10,27 @@
 3. ``identify``: the paper's self-calibration (eqs 1-18) with uncertainty.
 4. ``discover``: what that model gets wrong, the named causes, the extended
    model and its gain, checked here against what was hidden.
-5. The multi-feature bar (Viprey et al.): the 21 errors of the three linear
+5. The hardware route: the same plan probed through the probing interface a
+   real machine is driven by (``hardware.campaign.run_campaign``, as ``vmt
+   probe`` runs it) on the same virtual machine, identified like step 3's log.
+6. The multi-feature bar (Viprey et al.): the 21 errors of the three linear
    axes of a 3-axis machine from 14 bar placements, with U95, against the
    injected errors in the same ISO 230-1 conventions (gauge and sign); the
    LinuxCNC compensation it writes, applied to the virtual machine and the
    bar measured again (closed loop through the exact simulator).
-6. An ISO 230-2 positioning test of the same machine's Y axis (its figures,
+7. An ISO 230-2 positioning test of the same machine's Y axis (its figures,
    and discovery on it: what the standard's model can and cannot see).
-7. A report folder (HTML + PNG) and a rerun recording.
+8. Its LinuxCNC table (``vmt iso230-2 --comp-file``) loaded on the virtual
+   machine as LinuxCNC loads it, and the test run again.
+9. The virtual CMM (``vmt vcmm --machine-state``) on step 6's identified
+   state: a measurement task's uncertainty on the machine as identified,
+   beside what the true machine measures.
+10. A report folder (HTML + PNG) and a rerun recording.
+
+Each step is one ``say.head(KEY, ...)`` and one entry of :data:`STEPS` (its
+number follows from its place there); the files it writes go through
+``say.wrote`` into the closing summary. A new step is a function called
+between two heads and one tuple in :data:`STEPS`.
 """
 
 from __future__ import annotations
@@ -37,51 +50,127 @@ LOBING_M = ((2, 1.2e-6, 0.9e-6), (3, 1.0e-6, -0.6e-6))
 #: Format of the demo's ``iso230-2.json``: the test's figures (``iso230_2``, ``vmt-iso230-2/1``) and
 #: discovery on it (``discover``, ``vmt-discover/1``).
 DEMO_POSITIONING_FORMAT = "vmt-demo-iso230-2/1"
+#: The ISO 230-2 tests' scatter (steps 7 and 8): the readings' standard deviation (k = 1), um.
+POSITIONING_NOISE_UM = 0.3
 #: The hidden worn ball screw: a periodic EYY of this amplitude and pitch.
 SCREW_UM, SCREW_MM = 1.5, 8.0
 
 
-#: Relative duration of the seven steps (measured: 6, 2, 1.5, 61, 92, 13 s of a 175 s run on 2 busy
-#: cores, the positioning test about 1 %; the MFB step's closed loop, two more campaigns, since
-#: about doubles it), for the time left.
-STEP_WEIGHTS = (4, 1, 1, 35, 100, 1, 7)
+#: The steps in order: (key, relative duration for the time left). The weights are the wall seconds of each step
+#: measured in session 37 at load 18 on 2 cores (CPU s in brackets): machine 2.3 (0.6), campaign 0.9 (0.2),
+#: identify 3.6 (0.8), discover 5.1 (0.9), hardware route 16.6 (3.7), MFB and its closed loop 37 (9.3), ISO 230-2
+#: 0.3 (0.1), its table's closed loop 0.3 (0.05), virtual CMM 18.4 (5.1), report 16.5 (4.9). A step's number is
+#: its place here.
+STEPS = (("machine", 2), ("campaign", 1), ("identify", 4), ("discover", 5), ("hardware", 17), ("mfb", 37),
+         ("iso230-2", 1), ("iso230-2 comp", 1), ("vcmm", 18), ("report", 16))
+
+
+def _n(key: str) -> int:
+    """The number of step ``key`` (its place in :data:`STEPS`), for the text that names another step."""
+    return [k for k, _ in STEPS].index(key) + 1
+
+
+#: The weights alone, in step order.
+STEP_WEIGHTS = tuple(w for _, w in STEPS)
+#: ``vmt probe``'s soft limits and safe Z for the nmv3000 and the cross pocket (README's probe line), mm.
+PROBE_LIMITS_MM = ((-250.0, 250.0), (-250.0, 250.0), (-100.0, 200.0))
+PROBE_SAFE_Z_MM = 80.0
+#: Format of the demo's ``iso230-2-closed-loop.json`` (step 8).
+DEMO_COMP_LOOP_FORMAT = "vmt-demo-iso230-2-closed-loop/1"
+#: Format of the demo's ``vcmm-block.json`` (step 9): ``vmt vcmm --json``'s report and the truth beside it.
+DEMO_VCMM_FORMAT = "vmt-demo-vcmm/1"
+#: Step 8's check of the true error between the test's targets: every this many mm along the tested range.
+TRUE_STEP_MM = 0.5
+#: Step 9's task (vmt-task/1) on the README's block (scenarios/data/vcmm-block-plan.csv): the shipped task's
+#: diameter, face distance and flatness, without its [declared] limits (the identified state replaces them:
+#: the MFB identifies all 21 errors of the linear axes) and without "bore x", a position in the machine frame,
+#: which an identification fixes by its gauge (EXX = 0 at the first node), not by measuring it; the probe is
+#: the machine's (0.125 um, k = 1). [mc]: a numerical tolerance of 0.1 um (README's vcmm line) in batches of
+#: 100, at most 600 runs.
+VCMM_TASK = """# vmt demo, step 9: the README's block measured on the machine as the bar identified it
+format = "vmt-task/1"
+description = "a bore, a face distance and a flatness on a block (vmt demo)"
+
+[features.bore]
+kind = "circle"
+feature = "bore"
+
+[features.left]
+kind = "plane"
+feature = "left"
+
+[features.right]
+kind = "plane"
+feature = "right"
+
+[features.top]
+kind = "plane"
+feature = "top"
+
+[[measurands]]
+name = "bore diameter"
+quantity = "diameter"
+of = "bore"
+
+[[measurands]]
+name = "face distance"
+quantity = "distance"
+of = ["left", "right"]
+
+[[measurands]]
+name = "top flatness"
+quantity = "flatness"
+of = "top"
+
+[mc]
+tolerance_um = 0.1
+batch_runs = 100
+max_runs = 600
+"""
 
 
 def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
-    """Run the demo into ``out`` (steps 1-7 of the module docstring); return an exit code.
+    """Run the demo into ``out`` (the steps of the module docstring); return an exit code.
 
     0 when discovery names both hidden effects, else 1. ``progress(done,
     total)``: percent of the expected work (steps weighted by
-    :data:`STEP_WEIGHTS`, the MFB step by measurement); if it has a
+    :data:`STEPS`, the long steps by measurement); if it has a
     ``clear()`` method, that is called before each printed line.
     """
     t_start = time.perf_counter()
     outp = Path(out)
     outp.mkdir(parents=True, exist_ok=True)
-    say = _Say(progress)
-    say.head("1. the virtual machine")
+    say = _Say(progress, outp)
+    say.head("machine", "the virtual machine")
     machine, probe, errs = _machine(seed, say)
-    say.head("2. simulate the cross-pocket campaign")
+    say.head("campaign", "simulate the cross-pocket campaign")
     art, plan, log_path, t, on = _campaign(machine, probe, seed, outp, say)
-    say.head("3. identify: self-calibration, Ibaraki et al. eqs 1-18")
+    say.head("identify", "identify: self-calibration, Ibaraki et al. eqs 1-18")
     truth = _Truth.of(art, plan)
     res, ident = _identify(t, truth, errs, seed, outp, say, on)
     _map_cover(t, res, machine, say)
-    say.head("4. discover: what the model gets wrong, and why")
+    say.head("discover", "discover: what the model gets wrong, and why")
     d, rep, all_named = _discover(t, truth, log_path, outp, say)
-    say.head("5. the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
-    _mfb(seed, outp, say)
-    say.head("6. ISO 230-2: a positioning test of the Y axis of step 1's nmv3000 (its worn screw)")
-    _positioning(machine, seed, outp, say)
-    say.head("7. report and recording")
+    say.head("hardware", "the hardware route: the same plan through vmt probe's interface, on the same machine")
+    _hardware(machine, probe, art, plan, seed, outp, say, res)
+    say.head("mfb", "the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
+    mfb_json, mfb_machine = _mfb(seed, outp, say)
+    say.head("iso230-2", f"ISO 230-2: a positioning test of the Y axis of step {_n('machine')}'s nmv3000 (its worn screw)")
+    pos_plan, pos_path = _positioning(machine, seed, outp, say)
+    say.head("iso230-2 comp", "ISO 230-2 closed loop: the test's LinuxCNC table for Y, loaded, the test run again")
+    _positioning_comp(machine, pos_plan, pos_path, seed, outp, say)
+    say.head("vcmm", f"virtual CMM: a measurement's uncertainty on the machine as step {_n('mfb')} identified it")
+    _vcmm(mfb_json, mfb_machine, seed, outp, say)
+    say.head("report", "report and recording")
     from scenarios.reports import demo_report
 
     folder = demo_report(outp / "report", t, res, ident, d, rep, art, machine=machine, g_true=truth.g,
                          title="vmt demo: cross-pocket self-calibration")
+    say.wrote(folder / "index.html", folder / "recording.rrd")
     say(f"{folder / 'index.html'}  (open in a browser)")
     say(f"{folder / 'recording.rrd'}  (vmt view {folder / 'recording.rrd'})")
-    say(f"done in {time.perf_counter() - t_start:.1f} s; JSON: {outp / 'identify.json'}, {outp / 'discover.json'}")
-    say.step(len(STEP_WEIGHTS))
+    say(f"done in {time.perf_counter() - t_start:.1f} s; the files in {outp}, by step: {say.files_said()}")
+    say.step(len(STEPS))
     return 0 if all_named else 1
 
 
@@ -107,8 +196,9 @@ def _machine(seed: int, say):
     return machine, probe, errs
 
 
-def _campaign(machine, probe, seed: int, outp: Path, say):
-    """Step 2: the cross-pocket campaign at four C angles, written and read back (only the file counts)."""
+def _campaign(machine, probe, seed: int, outp: Path, say, angles=(0.0, 75.0, 130.0, 210.0)):
+    """Step 2: the cross-pocket campaign at four C angles (``angles``, deg), written and read back (only the
+    file counts)."""
     from core.probelog import write_probe_log
     from core.touches import from_log
     from scenarios.cli.reading import read_probe
@@ -119,10 +209,12 @@ def _campaign(machine, probe, seed: int, outp: Path, say):
 
     art = A.cross_pocket()
     plan = drift_check_plan(art)
-    angles = [0.0, 75.0, 130.0, 210.0]
+    angles = [float(a) for a in angles]
     log = simulate_campaign(art, machine, probe, angles, np.random.default_rng(seed + 1), plan=plan,
                             meta={"scenario": "vmt demo"})
     log_path = write_probe_log(outp / "cross-pocket.csv", log)
+    if hasattr(say, "wrote"):   # (the studies of the demo's campaign call this step with a bare print function)
+        say.wrote(log_path)
     log = read_probe(log_path, "demo")  # from here on, only what the file holds (its reader's warnings said)
     say(f"{log.n} touches ({plan.n} per C angle at C = {', '.join(f'{a:g}' for a in angles)} deg), "
         f"{np.nanmax(log.col('t_s')) / 60:.1f} min of machine time -> {log_path}")
@@ -169,13 +261,13 @@ def _identify(t, truth: _Truth, errs, seed: int, outp: Path, say, on: dict):
     ident = identify_report(res, mc, on)   # with its identified_on record, as vmt identify writes it
     # and the J it is placed with, whence as vmt identify says it: the virtual machine's tool (its [tool] offset_mm)
     ident["tool_offset"] = {"J_mm": [round(float(v), 9) for v in on["probe_offsets_J_mm"][0]], "from": "machine"}
-    write_json_atomic(outp / "identify.json", json_safe(ident))
+    say.wrote(write_json_atomic(outp / "identify.json", json_safe(ident)))
     g_err = truth.rms_m(res.G, res.design.target_ids)
     inj = _injected_in_gauge(res.design, errs, truth.g)
     say(f"residual RMS {res.rms_m * 1e6:.3f} um over {res.n_touches} touches; EC0Y {res.EC0Y * 1e6:+.1f} urad "
         f"against {inj[res.design.slices['EC0Y']][0] * 1e6:+.1f} urad injected, in the same gauge (eqs 16-17: "
         f"EYX zero at both ends; raw {errs['EC0Y'](np.zeros(1))[0] * 1e6:+.1f}); the gap is the lobing probe's, "
-        "which this model does not know (step 4)")
+        f"which this model does not know (step {_n('discover')})")
     ad = ident.get("not_covered", {}).get("approach_direction")
     if ad:  # identify's own residual check sees it and says what it biases, beyond the U95
         big = [("EC0Y", ad["shift"]["EC0Y"])] * ("EC0Y" in ad["shift"]) + sorted(
@@ -266,7 +358,7 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
     d = discover(t, **_progress_kw(discover, say.within))
     rep = json_safe(d.to_report())
     rep["log"] = str(log_path)
-    write_json_atomic(outp / "discover.json", rep)
+    say.wrote(write_json_atomic(outp / "discover.json", rep))
     say(f"baseline {rep['baseline']['model']}: RMS {rep['baseline']['rms_um']:.3f} um, "
         f"cross-validated {rep['baseline_cv_rms_um']:.3f} um")
     for f in rep["findings"]:
@@ -291,16 +383,83 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
     return d, rep, hidden <= named
 
 
-def _mfb(seed: int, outp: Path, say) -> None:
-    """Step 5: the MFB 3-axis scenario; how many identified values lie within their U95; its compensation
-    applied to the virtual machine and measured again."""
+def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, res) -> dict:
+    """Step 5: step 2's plan written as a plan file (``vmt simulate --plan-only``), probed through the probing
+    interface (``hardware.campaign.run_campaign``, the code ``vmt probe`` runs: the program checked against the
+    soft limits before any motion, moves via a safe Z with the table turned there, every touch on disk before
+    the next) on a virtual backend holding step 1's machine, part and probe (``hardware.virtual.SimMachine``,
+    as ``vmt probe --controller virtual:cross-pocket`` and the GRBL emulator hold theirs), then identified as
+    step 3 identifies (``vmt identify --mc 0``). The backend draws its probing noise from step 2's seed, so
+    the two logs hold the same draws and what differs is the route's own. Returns the comparison."""
     from core.atomic import json_safe, write_json_atomic
-    from scenarios.mfb import closed_loop
+    from core.probelog import write_probe_log
+    from core.selfcal import self_calibrate
+    from core.touches import from_log
+    from core.uncertainty import K
+    from hardware.backend import VirtualBackend
+    from hardware.campaign import ProbeSettings, run_campaign
+    from hardware.virtual import SimMachine
+    from scenarios.cli.reading import read_probe
+    from scenarios.identify_report import identify_record, identify_report
+    from sim.campaign import simulate_campaign
+    from sim.probe import VirtualMachine
+
+    sim_log = read_probe(outp / "cross-pocket.csv", "demo")
+    angles = list(dict.fromkeys(float(c) for c in sim_log.col("C_deg")))    # step 2's set-ups, in order
+    plan_log = simulate_campaign(art, machine, probe, angles, None, plan=plan, plan_only=True,
+                                 meta={"scenario": "vmt demo"})
+    plan_path = write_probe_log(outp / "cross-pocket-plan.csv", plan_log)
+    plan_log = read_probe(plan_path, "demo")
+    out = outp / "cross-pocket-probed.csv"
+    out.unlink(missing_ok=True)    # (a log of an earlier demo: vmt probe continues a log only with --resume)
+    vm = VirtualMachine(machine, art, probe, np.random.default_rng(seed + 1))   # step 2's noise draws
+    backend = VirtualBackend(SimMachine(vm), name="virtual:cross-pocket (the demo's nmv3000)")
+    settings = ProbeSettings(limits_mm=PROBE_LIMITS_MM, safe_z_mm=PROBE_SAFE_Z_MM)
+    run = run_campaign(backend, plan_log, out, settings, plan_path=str(plan_path),
+                       on_touch=lambda row, _r: say.within(row + 1, plan_log.n))
+    log = read_probe(out, "demo")
+    t2 = from_log(log)
+    grid = res.design.grid
+    res2 = self_calibrate(t2, grid)
+    ident2 = identify_report(res2, None, identify_record(log, [v * 1e3 for v in machine.config.J_m]))
+    probed_json = write_json_atomic(outp / "identify-probed.json", json_safe(ident2))
+    say.wrote(plan_path, out, probed_json)
+    d_um = np.abs(log.positions_mm() - sim_log.positions_mm()) * 1e3
+    u95 = K * np.sqrt(np.clip(np.diag(res.cov), 0.0, None))     # identify.json's U95 (its axes' u95_urad)
+    free = u95 > 0                                 # (the gauge's parameters are 0 in both, U95 0)
+    ratio = np.abs(res2.theta - res.theta)[free] / u95[free]
+    s = res.design.slices["EC0Y"]
+    cmp = {"touches": int(log.n), "statuses": dict(run.statuses), "max_touch_difference_um": float(np.nanmax(d_um)),
+           "EC0Y_urad": [float(res.EC0Y * 1e6), float(res2.EC0Y * 1e6)], "EC0Y_u95_urad": float(u95[s][0] * 1e6),
+           "max_workpiece_difference_um": float(np.abs(res2.G - res.G).max() * 1e6),
+           "max_difference_over_u95": float(ratio.max())}
+    say(f"plan -> {plan_path}; probed through hardware.campaign.run_campaign (vmt probe's: soft limits "
+        f"{', '.join(f'{a}{lo:g}:{hi:g}' for a, (lo, hi) in zip('XYZ', PROBE_LIMITS_MM))} mm checked before any "
+        f"motion, safe Z {PROBE_SAFE_Z_MM:g} mm, each touch on disk before the next): {run.rows_done} of "
+        f"{run.rows_total} touches, {', '.join(f'{k} {v}' for k, v in sorted(run.statuses.items()))} -> {out}")
+    say(f"identified as step {_n('identify')} (-> {probed_json}): EC0Y {cmp['EC0Y_urad'][1]:+.2f} urad against "
+        f"step {_n('identify')}'s "
+        f"{cmp['EC0Y_urad'][0]:+.2f} (U95 {cmp['EC0Y_u95_urad']:.2f}), workpiece {cmp['max_workpiece_difference_um']:.1e}"
+        f" um apart at most, no identified value moved by more than {cmp['max_difference_over_u95']:.0e} of its "
+        f"U95: the touches agree to {cmp['max_touch_difference_um']:.0e} um (the contact searches' "
+        "tolerance), as the same machine, part and probe were touched along the same approach lines with the "
+        "same noise draws; what the route adds (the program in machine coordinates, the moves via the safe Z, "
+        "the append-only log) moved no touch. A real controller adds its reports' rounding (GRBL: 3 decimals)")
+    return cmp
+
+
+def _mfb(seed: int, outp: Path, say):
+    """Step 6: the MFB 3-axis scenario; how many identified values lie within their U95; its compensation
+    applied to the virtual machine and measured again. Returns (mfb-3axis.json's path, the true machine)."""
+    from core.atomic import json_safe, write_json_atomic
+    from scenarios.mfb import closed_loop, default_machine
     from scenarios.mfb import run as run_mfb
+    from sim.machine import Machine
 
     res = run_mfb("mfb-3axis", seed=seed, mc_runs=200, progress=say.within)
     doc = res.doc
-    write_json_atomic(outp / "mfb-3axis.json", json_safe(doc))
+    mfb_json = write_json_atomic(outp / "mfb-3axis.json", json_safe(doc))
+    say.wrote(mfb_json)
     w = doc["within_u95"]  # the nodes of 21 errors, which miss together: the model's count beside it
     c = doc.get("collision_check") or {}
     fx = sorted({b["name"] for bl in c.get("fixtures", {}).values() for b in bl})
@@ -314,9 +473,9 @@ def _mfb(seed: int, outp: Path, say) -> None:
         f"{w['errors_range95'][0]}-{w['errors_range95'][1]}) -> {outp / 'mfb-3axis.json'}")
     # the compensation it makes, applied to the machine and measured again (closed loop, exact simulator)
     comp_dir = outp / "comp"
-    res.write_comp(comp_dir)
+    say.wrote(*res.write_comp(comp_dir))
     loop = closed_loop("mfb-3axis", comp_dir, before=res, seed=seed, mc_runs=200)
-    write_json_atomic(outp / "mfb-3axis-closed-loop.json", json_safe(loop))
+    say.wrote(write_json_atomic(outp / "mfb-3axis-closed-loop.json", json_safe(loop)))
     rows = []
     for a in "XYZ":
         b, f, v = (loop[k]["positioning"][a] for k in ("before", "per_axis_files", "volumetric"))
@@ -333,10 +492,13 @@ def _mfb(seed: int, outp: Path, say) -> None:
     say("volumetric error over the node box (rigid motion removed), um: " + ", ".join(vol)
         + "; errors applied in part, the fraction that leaves the least mean-square error against their U95 "
           "(0: left out): " + (", ".join(part) or "none") + f" -> {outp / 'mfb-3axis-closed-loop.json'}")
+    # the truth the scenario ran on (scenarios.mfb.run without a machine: its plan's default machine, no ripple)
+    return mfb_json, Machine(default_machine(res.plan.machine)[0])
 
 
-def _positioning(machine, seed: int, outp: Path, say) -> None:
-    """Step 6: the standard's laser test of Y (11 targets, 5 linear cycles), its figures, and discovery on it."""
+def _positioning(machine, seed: int, outp: Path, say):
+    """Step 7: the standard's laser test of Y (11 targets, 5 linear cycles), its figures, and discovery on it.
+    Returns (its plan, its log's path)."""
     from core.atomic import json_safe, write_json_atomic
     from core.baseline import positioning_from_log
     from core.discover import discover_baseline
@@ -345,40 +507,171 @@ def _positioning(machine, seed: int, outp: Path, say) -> None:
 
     rng = np.random.default_rng(seed)
     plan = positioning_plan(machine, "Y", rng=rng)
-    log = simulate_positioning(machine, plan, rng, noise_m=0.3 * UM, meta={"machine": "demo nmv3000"})
+    log = simulate_positioning(machine, plan, rng, noise_m=POSITIONING_NOISE_UM * UM, meta={"machine": "demo nmv3000"})
     path = write_positioning_log(outp / "positioning-Y.csv", log)
     r = iso230_2(log)
     rep = discover_baseline(positioning_from_log(log)).to_report()
-    write_json_atomic(outp / "iso230-2.json", json_safe({"format": DEMO_POSITIONING_FORMAT, "iso230_2": r.to_report(),
-                                                                "discover": rep}))
-    say(f"{len(r.targets)} targets x {plan.cycles} cycles, both directions, 0.3 um scatter -> {path}: "
+    say.wrote(path, write_json_atomic(outp / "iso230-2.json", json_safe({
+        "format": DEMO_POSITIONING_FORMAT, "iso230_2": r.to_report(), "discover": rep})))
+    say(f"{len(r.targets)} targets x {plan.cycles} cycles, both directions, {POSITIONING_NOISE_UM:g} um scatter -> {path}: "
         f"E {r.E * 1e3:.2f} um, M {r.M * 1e3:.2f} um, R {r.R * 1e3:.2f} um, B {r.B * 1e3:.2f} um, "
         f"A {r.A * 1e3:.2f} um")
     found = [f["cause"] for f in rep["findings"]]
     say(f"discover on the test: {', '.join(found) if found else 'none'} (noise {rep['noise_um']['sigma_um']:.2f} um "
         f"from the repeats); the {SCREW_MM:g} mm screw wear sits in the per-target means, which the standard's "
         f"model takes as they are: one point per target cannot show a period of {SCREW_MM:g} mm, the cross "
-        f"pocket's dense walls could (step 4)")
+        f"pocket's dense walls could (step {_n('discover')})")
+    return plan, path
+
+
+def _positioning_comp(machine, plan, log_path, seed: int, outp: Path, say) -> dict:
+    """Step 8: step 7's test evaluated as ``vmt iso230-2 LOG --json J --comp-file Y.comp`` does
+    (:func:`scenarios.positioning.evaluate_file`), the table loaded on the virtual machine as LinuxCNC loads a
+    joint's COMP_FILE (:class:`sim.compensation.AxisCompensation`: the joint commanded to ``pos + trim``, linear
+    between lines), the same test run again with new noise draws and evaluated the same way; and the true
+    error along the tested range every :data:`TRUE_STEP_MM` (the exact chain, noise-free), before and after,
+    which shows what one table line per target cannot hold. Returns the figures (also written)."""
+    from core.atomic import json_safe, write_json_atomic
+    from core.positioning import write_positioning_log
+    from hardware.linuxcnc import read_comp_file
+    from scenarios.positioning import evaluate_file
+    from sim.compensation import AxisCompensation, JointTable
+    from sim.positioning import deviations_m, simulate_positioning
+
+    comp = outp / f"{plan.axis}.comp"
+    before, _ = evaluate_file(log_path, outp / f"iso230-2-{plan.axis}.json", comp_file=comp)
+    loaded = AxisCompensation(machine, {plan.axis: JointTable.from_type0(read_comp_file(comp) * MM)})
+    rng = np.random.default_rng(seed + 3)
+    log = simulate_positioning(loaded, plan, rng, noise_m=POSITIONING_NOISE_UM * UM,
+                               meta={"machine": f"demo nmv3000, {comp.name} loaded"})
+    path = write_positioning_log(outp / f"positioning-{plan.axis}-compensated.csv", log)
+    after, _ = evaluate_file(path, outp / f"iso230-2-{plan.axis}-compensated.json")
+    lo, hi = float(np.min(plan.targets_m)), float(np.max(plan.targets_m))
+    x = np.linspace(lo, hi, int(round((hi - lo) / (TRUE_STEP_MM * MM))) + 1)
+    true = {}
+    for name, m in (("before", machine), ("after", loaded)):
+        dev = np.concatenate([deviations_m(m, plan, x, np.zeros_like(x), np.full_like(x, d)) for d in (1.0, -1.0)])
+        at = np.concatenate([deviations_m(m, plan, plan.targets_m, np.zeros(len(plan.targets_m)),
+                                          np.full(len(plan.targets_m), d)) for d in (1.0, -1.0)])
+        true[name] = {"range_um": float(np.ptp(dev) / UM), "max_abs_um": float(np.abs(dev).max() / UM),
+                      "range_at_targets_um": float(np.ptp(at) / UM)}
+    gaps = np.diff(np.sort(np.asarray(plan.targets_m))) / MM
+    fig = ("E", "M", "R", "B", "A")
+    doc = {"format": DEMO_COMP_LOOP_FORMAT, "axis": plan.axis, "comp_file": comp.name,
+           "before": {k: before[f"{k}_um"] for k in fig}, "after": {k: after[f"{k}_um"] for k in fig},
+           "true_step_mm": TRUE_STEP_MM, "true": true, "target_gaps_mm": [float(gaps.min()), float(gaps.max())],
+           "logs": [str(Path(log_path).name), path.name],
+           "what": "ISO 230-2 figures (um) of the test and of the same test with its TYPE 0 table loaded; true: "
+                   "the exact chain's deviation along the tested range (both directions), noise-free"}
+    out = write_json_atomic(outp / "iso230-2-closed-loop.json", json_safe(doc))
+    say.wrote(comp, outp / f"iso230-2-{plan.axis}.json", path, outp / f"iso230-2-{plan.axis}-compensated.json", out)
+    b, a = doc["before"], doc["after"]
+    say(f"{comp} (vmt iso230-2 {Path(log_path).name} --comp-file {comp.name}: the mean deviation per target and "
+        f"direction) loaded as LinuxCNC loads a joint's table, the test run again (new noise) -> {path}: "
+        + ", ".join(f"{k} {b[k]:.2f} -> {a[k]:.2f} um" for k in fig)
+        + f"; M, the range of the mean deviations, x{b['M'] / a['M']:.0f} smaller; R and B are the readings' "
+          "scatter, which no table corrects (the table carries the first test's into the second)")
+    tb, ta = true["before"], true["after"]
+    say(f"true error along Y (exact chain, every {TRUE_STEP_MM:g} mm, both directions, no noise): at the targets "
+        f"{tb['range_at_targets_um']:.2f} -> {ta['range_at_targets_um']:.2f} um range, over the whole range "
+        f"{tb['range_um']:.2f} -> {ta['range_um']:.2f} um, up to {ta['max_abs_um']:.2f} um left: between the targets "
+        f"({gaps.min():.0f}-{gaps.max():.0f} mm apart) the table is linear through the worn screw's {SCREW_MM:g} mm ripple as the targets sampled "
+        f"it, so where the ripple ({SCREW_UM:g} um) turns the other way it adds to it -> {out}")
+    return doc
+
+
+def _vcmm(mfb_json: Path, truth_machine, seed: int, outp: Path, say) -> dict:
+    """Step 9: ``vmt vcmm --plan scenarios/data/vcmm-block-plan.csv --machine vmc-3axis --task T
+    --machine-state mfb-3axis.json --no-budget`` (:data:`VCMM_TASK`, written beside the other files): the
+    state read, checked and placed as the command does, then :func:`scenarios.vcmm.prepare` and
+    :func:`~scenarios.vcmm.study`; beside it, the same block measured once on step 6's TRUE machine (the exact
+    simulator, the probe's noise; as ``scenarios.vcmm_state`` counts coverage). Returns the comparison."""
+    from core import vcmm as V
+    from core.atomic import json_safe, write_json_atomic, write_text_atomic
+    from core.exceptions import ConfigError
+    from core.state import identified_on_mismatch, probe_offsets_check, read_estimate
+    from scenarios.cli.reading import read_probe
+    from scenarios.vcmm import prepare, simulate_run, study
+    from sim.machinefile import truth_machine as machine_file
+
+    task_path = write_text_atomic(outp / "vcmm-task.toml", VCMM_TASK)
+    plan_path = Path(__file__).resolve().parent / "data" / "vcmm-block-plan.csv"
+    spec = machine_file("vmc-3axis", "none")       # the best estimate before the state: no errors
+    cfg = spec.config
+    state = read_estimate(mfb_json)
+    why = identified_on_mismatch(state, cfg.name, cfg.chain) or probe_offsets_check(state, [v * 1e3 for v in cfg.J_m])[0]
+    if why:     # pragma: no cover - step 6 identified this machine with this tool
+        raise ConfigError(f"{mfb_json}: {why}")
+    st = prepare(read_probe(plan_path, "demo"), V.load_task(task_path), spec,
+                 state=state.at_axis_positions(cfg.J_m))
+    rep = study(st, seed, budget=False, progress=say.within)
+    rep.pop("values_si")
+    p = simulate_run(st, {}, np.random.default_rng([seed, 23]), machine=truth_machine)
+    y = V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R)
+    rows = []
+    for j, m in enumerate(rep["measurands"]):
+        tv = float(y[j] * st.task.measurands[j].scale)
+        lo, hi = m["interval"]
+        rows.append({"name": m["name"], "unit": m["unit"], "identified_mean": m["mean"], "U95": m["U"],
+                     "u_unit": m["u_unit"], "interval": [lo, hi], "true_measured": tv, "inside": bool(lo <= tv <= hi),
+                     "true_minus_mean": (tv - m["mean"]) * (1e3 if m["unit"] == "mm" else 1.0)})
+    doc = {"format": DEMO_VCMM_FORMAT, "plan": "scenarios/data/vcmm-block-plan.csv", "task": task_path.name,
+           "machine_state": Path(mfb_json).name, "vcmm": rep, "truth": rows,
+           "truth_what": "the block measured once on the scenario's true vmc-3axis (exact simulator, the probe's "
+                         "noise), fitted and evaluated as each virtual CMM run"}
+    out = write_json_atomic(outp / "vcmm-block.json", json_safe(doc))
+    say.wrote(task_path, out)
+    say(f"the README's block (scenarios/data/vcmm-block-plan.csv, {rep['touches']} touches) on vmc-3axis with "
+        f"--machine-state {Path(mfb_json).name} (its 21 errors drawn from their covariance each run) and the "
+        f"probe's noise, {rep['runs']} runs; beside it, the true machine's measurement (one noise draw):")
+    for r in rows:
+        d = 5 if r["unit"] in ("mm", "deg") else 2      # (a flatness is in um)
+        say(f"  {r['name']}: {r['identified_mean']:.{d}f} {r['unit']} +- {r['U95']:.2f} {r['u_unit']} (U95) as "
+            f"identified, {r['true_measured']:.{d}f} {r['unit']} on the true machine "
+            f"({r['true_minus_mean']:+.2f} {r['u_unit']}, {'inside' if r['inside'] else 'OUTSIDE'} the 95 % interval)")
+    say(f"(-> {out}; the task: {task_path}, the shipped block task without its declared limits, which the "
+        "state replaces, and without its bore position, a machine-frame position the identification's gauge "
+        "fixes: EXX = 0 at the first node)")
+    return doc
 
 
 class _Say:
-    """Prints the story; each ``head`` starts the next step of the progress (kept below the text)."""
+    """Prints the story; each ``head`` starts its step of the progress (kept below the text), numbered by its
+    place in :data:`STEPS`; ``wrote`` keeps each step's files for the closing summary (relative to ``outp``)."""
 
-    def __init__(self, progress=None):
+    def __init__(self, progress=None, outp: Path | None = None):
         self.progress = progress
         self.clear = getattr(progress, "clear", None)
         self.k = -1
+        self.outp = outp
+        self.files: dict[int, list[str]] = {}
 
     def __call__(self, text: str) -> None:
         if self.clear is not None:
             self.clear()
         print(f"  {text}", flush=True)
 
-    def head(self, text: str) -> None:
+    def head(self, key: str, text: str) -> None:
+        """Start step ``key`` of :data:`STEPS`: ``N. text``, N its place there."""
+        k = [s for s, _ in STEPS].index(key)
         if self.clear is not None:
             self.clear()
-        print(f"\nvmt demo | {text}", flush=True)
-        self.step(self.k + 1)
+        print(f"\nvmt demo | {k + 1}. {text}", flush=True)
+        self.step(k)
+
+    def wrote(self, *paths) -> None:
+        """The current step wrote ``paths`` (named in the closing summary)."""
+        for p in paths:
+            p = Path(p)
+            try:
+                p = p.relative_to(self.outp) if self.outp is not None else p
+            except ValueError:
+                pass
+            self.files.setdefault(self.k + 1, []).append(str(p))
+
+    def files_said(self) -> str:
+        """``2 cross-pocket.csv; 3 identify.json; ...``: each step's files, by step number."""
+        return "; ".join(f"{k} {', '.join(v)}" for k, v in sorted(self.files.items()))
 
     def step(self, k: int, frac: float = 0.0) -> None:
         """Step ``k`` (0-based) is ``frac`` done."""

@@ -8,6 +8,7 @@ import pytest
 
 from core.probelog import read_probe_log
 from scenarios.cli import main
+from scenarios.demo import SCREW_UM
 
 
 def _check_recording_frames(rrd, map_outside: str):
@@ -121,16 +122,48 @@ def test_demo_end_to_end(tmp_path, capsys):
         assert loop["volumetric"]["volumetric_check"][a]["improved"], loop["volumetric"]["volumetric_check"][a]
     assert outside <= 3, outside
     assert "applied to the virtual machine" in text
-    # step 6: the ISO 230-2 test of Y on step 1's nmv3000 (not step 5's VMC), its figures and discovery on it
+    # step 7: the ISO 230-2 test of Y on step 1's nmv3000 (not step 6's VMC), its figures and discovery on it
     pos = json.loads((out / "iso230-2.json").read_text())
     iso = pos["iso230_2"]
     assert iso["E_um"] >= iso["M_um"] > 0 and iso["A_um"] >= iso["E_um"]
     assert 0.2 < pos["discover"]["noise_um"]["sigma_um"] < 0.4          # 0.3 um scatter, 40 dof
     assert (out / "positioning-Y.csv").read_text().startswith("# format: positioning-log/1")
     assert "ISO 230-2: a positioning test of the Y axis" in text
+    # step 5, the hardware route (tests/scenarios/test_demo_steps37.py: its figures on three set-ups): the same
+    # touches as step 2's to the contact searches' tolerance (measured 1e-8 um), so the same state
+    m = re.search(r"EC0Y ([+-][\d.]+) urad against step 3's ([+-][\d.]+) \(U95 ([\d.]+)\).*the touches agree to "
+                  r"(\S+) um", text)
+    assert m and m[1] == m[2] and float(m[4]) < 1e-5, text
+    assert float(m[3]) == round(ident["axes"]["EC0Y"]["u95_urad"], 2)       # identify.json's U95 of EC0Y
+    probed = read_probe_log(out / "cross-pocket-probed.csv")
+    assert probed.n == log.n and probed.ok.all() and probed.meta["source"] == "vmt probe"
+    # step 8, the ISO 230-2 table's closed loop (test_demo_steps37.py says why 5x): M falls with the table
+    cl = json.loads((out / "iso230-2-closed-loop.json").read_text())
+    assert cl["after"]["M"] < cl["before"]["M"] / 5 and cl["before"]["E"] == pytest.approx(iso["E_um"], rel=1e-12)
+    assert cl["true"]["after"]["range_at_targets_um"] < 1.5 < cl["true"]["before"]["range_at_targets_um"]
+    # step 9, the virtual CMM on step 6's state: the true machine's one measurement (one noise draw) within
+    # 2 U95 of the identified mean on every measurand (U95 ~ 2 u: beyond 2 U95 is ~4 u, p ~ 6e-5 for a
+    # right state; a state off by its own U95 would miss by more in the face distance, measured +0.25 of 0.32)
+    vc = json.loads((out / "vcmm-block.json").read_text())
+    assert [r["name"] for r in vc["truth"]] == ["bore diameter", "face distance", "top flatness"]
+    for r in vc["truth"]:
+        assert abs(r["true_minus_mean"]) < 2 * r["U95"], r
+    assert vc["vcmm"]["runs"] >= 200 and all(m["converged"] for m in vc["vcmm"]["measurands"])
+    # the closing line names every file the steps wrote, each there
+    said = text.split("by step: ", 1)[1].splitlines()[0]
+    named = [f for part in said.split("; ") for f in part.split(" ", 1)[1].split(", ")]
+    assert len(named) >= 20 and all((out / f).is_file() for f in named), named
+    # the README's figures of the demo are the ones it printed (a figure there must not drift from the demo)
+    section = readme_demo_section()
+    missing = [p for p in readme_demo_phrases(text, out) if p not in section]
+    whole = " ".join(readme_text().split())
+    missing += [p for p in readme_elsewhere_phrases(text, out) if p not in whole]
+    assert not missing, missing
     # every JSON names its format (docs/formats.md), the nested reports theirs
-    assert [ident["format"], disc["format"], mfb["format"], loop["format"], pos["format"]] == [
-        "vmt-identify/1", "vmt-discover/1", "vmt-mfb/1", "vmt-mfb-closed-loop/1", "vmt-demo-iso230-2/1"]
+    assert [ident["format"], disc["format"], mfb["format"], loop["format"], pos["format"], cl["format"],
+            vc["format"], vc["vcmm"]["format"]] == [
+        "vmt-identify/1", "vmt-discover/1", "vmt-mfb/1", "vmt-mfb-closed-loop/1", "vmt-demo-iso230-2/1",
+        "vmt-demo-iso230-2-closed-loop/1", "vmt-demo-vcmm/1", "vmt-vcmm/1"]
     assert (iso["format"], pos["discover"]["format"]) == ("vmt-iso230-2/1", "vmt-discover/1")
     assert json.loads((out / "comp" / "mfb-3axis-comp.json").read_text())["format"] == "vmt-comp/1"
     for f in ("index.html", "recording.rrd", "error_map.png", "residuals_baseline.png"):
@@ -156,6 +189,104 @@ def test_demo_end_to_end(tmp_path, capsys):
         err = capsys.readouterr().err
         assert f"--machine-state {state}: identified on machine 'nmv3000'" in err and "another structure" in err
     assert not (tmp_path / "v.json").exists()
+
+
+def readme_text() -> str:
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parents[2] / "README.md").read_text()
+
+
+def readme_demo_section() -> str:
+    """README's "What `make demo` shows", its whitespace collapsed (the text wraps anywhere)."""
+    return " ".join(readme_text().split("### What `make demo` shows", 1)[1].split("\n## ", 1)[0].split())
+
+
+def readme_elsewhere_phrases(text: str, out) -> list[str]:
+    """The demo's figures README quotes outside its demo section ("`vmt identify` on a simulated cross-pocket
+    log": what the lobing biases), built from the demo's print and its identify.json."""
+    hidden = re.search(r"the hidden 2-lobe \(([\d.]+) um\) alone moves EC0Y by ([\d.]+) urad", text)
+    visible = re.search(r"its visible part \(what the residuals show\) moves EC0Y by ([\d.]+) urad", text)
+    worst = re.search(r"at its worst phase moves EC0Y by ([\d.]+) urad", text)
+    amp = re.search(r"a pre-travel lobing of order 2, ~([\d.]+) um", text)
+    assert hidden and visible and worst and amp, text
+    ident = json.loads((out / "identify.json").read_text())
+    ecy = ident["not_covered"]["approach_direction"]["shift"]["ECY"]["worst_phase"]
+    h, v, w = float(hidden[2]), float(visible[1]), float(worst[1])
+    return [f"the demo's 2-lobe moves EC0Y by {h:.1f} µrad where its visible part says {v:.1f}",
+            f"the demo finds {amp[1]} µm of its {hidden[1]} µm 2-lobe: EC0Y {w:.1f} µrad holds the {h:.1f}, ECY "
+            f"{ecy:.1f} does not hold"]
+
+
+def readme_demo_phrases(text: str, out) -> list[str]:
+    """The phrases README's demo section must hold, built from what the demo printed (``text``) and wrote
+    (``out``): each figure README quotes from the demo, in README's words and to its decimals."""
+    def grab(pattern, n=1):
+        m = re.search(pattern, text)
+        assert m, pattern
+        return m.groups() if n > 1 else m[1]
+
+    f = float
+    ph = []
+    raw, sc, plain = grab(r"raw C=0 probing ([\d.]+) um RMS -> self-calibrated ([\d.]+) um RMS \(the raw C=0 touches "
+                          r"with nothing removed: ([\d.]+) um RMS", 3)
+    ph.append(f"the raw probing error at C = 0, {raw} µm RMS, becomes {sc} µm RMS (x{f(raw) / f(sc):.1f}; the raw "
+              f"touches with nothing removed are {plain} µm RMS")
+    k, amp = grab(r"a pre-travel lobing of order (\d), ~([\d.]+) um", 2)
+    ph.append(f"(a lobing probe, order {k}, ~{amp} µm)")
+    v = grab(r"moves EC0Y by ([\d.]+) urad \(([\d.]+) x its U95\), EXX by ([\d.]+) um \(([\d.]+) x its U95\)", 4)
+    ph.append(f"moves EC0Y by {v[0]} µrad ({v[1]} x its U95) and EXX by {v[2]} µm ({v[3]} x)")
+    v = grab(r"at its worst phase moves EC0Y by ([\d.]+) urad \(([\d.]+) x\), EXX by ([\d.]+) um \(([\d.]+) x\)", 4)
+    ph.append(f"at its worst phase by {v[0]} µrad ({v[1]} x) and {v[2]} µm ({v[3]} x)")
+    v = grab(r"alone moves EC0Y by ([\d.]+) urad, EXX by ([\d.]+) um", 2)
+    ph.append(f"EC0Y {v[0]} µrad, EXX {v[1]} µm")
+    v = grab(r"outside its U95 at (\d+) of (\d+) nodes \(2 gauge nodes aside\), up to ([\d.]+) x at \((-?\d+), (-?\d+)\)",
+             5)
+    ph.append(f"outside it at {v[0]} of the {v[1]} nodes the gauge leaves free (up to {v[2]} x, at ({v[3]}, {v[4]}) mm")
+    v = grab(r"period ([\d.]+) mm, EYY amplitude ([\d.]+)", 2)
+    ph.append(f"period {v[0]} mm, {v[1]} µm against {SCREW_UM:g} µm hidden")
+    b = grab(r"baseline [^\n]*, cross-validated ([\d.]+) um\n")
+    e, r = grab(r"extended [^\n]*, cross-validated ([\d.]+) um \(x([\d.]+)", 2)
+    ph.append(f"cut to {r} of the baseline's ({f(b):.2f} -> {f(e):.2f} µm)")
+    b, e = grab(r"workpiece against the truth: baseline ([\d.]+) um RMS -> extended ([\d.]+) um RMS", 2)
+    ph.append(f"{f(b):.2f} -> {f(e):.2f} µm RMS")
+    rows = re.findall(r"([XYZ]) ([\d.]+) -> ([\d.]+) \((\d+)/(\d+) nodes within U95\) -> [\d.]+ um", text)
+    assert len(rows) == 3
+    ph.append("from " + " / ".join(f"{f(r[1]):.1f}" for r in rows) + " µm (X, Y, Z) to "
+              + " / ".join(r[2] for r in rows) + " µm, within the identification's U95 at "
+              + f"{sum(int(r[3]) for r in rows)} of {sum(int(r[4]) for r in rows)} nodes")
+    vol = re.findall(r"([XYZ]) ([\d.]+) -> ([\d.]+) \(predicted [\d.]+, U95 ([\d.]+);", text)
+    assert len(vol) == 3
+    ph.append("volumetric error over the node box from " + " / ".join(r[1] for r in vol) + " to "
+              + " / ".join(r[2] for r in vol) + " µm")
+    ph.append("(" + " / ".join(r[3] for r in vol) + " µm)")
+    # step 5
+    e1, e0, u = grab(r"EC0Y ([+-][\d.]+) urad against step 3's ([+-][\d.]+) \(U95 ([\d.]+)\)", 3)
+    agree = grab(r"the touches agree to (\S+) um")
+    ph.append(f"EC0Y {e1} µrad, as step 3's (U95 {u} µrad); the touches agree to {agree} µm")
+    # step 8 (its JSON: the printed figures are its rounding)
+    cl = json.loads((out / "iso230-2-closed-loop.json").read_text())
+    b, a, t = cl["before"], cl["after"], cl["true"]
+    ph.append(f"E {b['E']:.2f} -> {a['E']:.2f} µm, M {b['M']:.2f} -> {a['M']:.2f} µm (x{b['M'] / a['M']:.0f}), "
+              f"A {b['A']:.2f} -> {a['A']:.2f} µm")
+    ph.append(f"({b['R']:.2f} -> {a['R']:.2f} and {b['B']:.2f} -> {a['B']:.2f} µm")
+    ph.append(f"falls from {t['before']['range_at_targets_um']:.2f} to {t['after']['range_at_targets_um']:.2f} µm of "
+              f"range at the targets")
+    ph.append(f"from {t['before']['range_um']:.2f} to {t['after']['range_um']:.2f} µm, up to "
+              f"{t['after']['max_abs_um']:.2f} µm left")
+    ph.append(f"targets {cl['target_gaps_mm'][0]:.0f}-{cl['target_gaps_mm'][1]:.0f} mm apart")
+    ph.append(f"every {cl['true_step_mm']:g} mm, both directions")
+    # step 9
+    vc = json.loads((out / "vcmm-block.json").read_text())
+    r = {x["name"]: x for x in vc["truth"]}
+    ph.append(f"{vc['vcmm']['runs']} runs")
+    ph.append(f"U95 {r['bore diameter']['U95']:.2f} µm on the bore diameter, {r['face distance']['U95']:.2f} µm on "
+              f"the face distance, {r['top flatness']['U95']:.2f} µm on the top's flatness")
+    inside = all(x["inside"] for x in vc["truth"])
+    ph.append("measures " + ", ".join(f"{x['true_minus_mean']:+.2f}" for x in vc["truth"][:-1])
+              + f" and {vc['truth'][-1]['true_minus_mean']:+.2f} µm from the identified means"
+              + (", each inside its 95 % interval" if inside else ""))
+    return ph
 
 
 def test_lobing_text_says_which_lobes_it_cannot_see():
