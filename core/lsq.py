@@ -1263,6 +1263,18 @@ def orth_of(A, tol: float = 1e-9, qr=None):
 #: to 1e-20, and a tail costs a median 0.15 x Imhof's; Imhof's quadrature returned 0 or up to 1e-4 too much when one
 #: weight dominates (docs/papers-mfb.md, "Imhof's quadrature where one weight dominates").
 QF_SADDLE_CONTOUR = True
+#: With :data:`QF_SADDLE_CONTOUR`, also ``x <= 0`` on a contour through the saddlepoint (:func:`_qf_sf_contour`;
+#: session 37, tail37), where Imhof's quadrature was kept: ``x = 0`` is the ratio test of
+#: :func:`core.uncertainty.model_error_budget` (weights of both signs), ``x < 0`` a lower tail. Against beta tails
+#: (``x = 0``, 0.98 to 5e-150), the exponentials' closed form, chi-square lower tails (to 1e-12) and a 1-D integral
+#: over one term's density: within 3.5e-14 relative (Imhof's quadrature: 50 % off at 1e-12, 0 below about 1e-16).
+#: On 350 recorded ratio-test weight sets (the paper's pocket, 80 campaigns) Imhof's was within 1.5e-14 absolute
+#: (the 8 tails below 1e-15 moved relatively: it returned 0 or 2e-15), no gate decision moved; a tail costs a median
+#: 1.6 x Imhof's there (6.6 ms against 4.2: many degrees of freedom, where Imhof's integrand falls fast).
+QF_CONTOUR_NONPOSITIVE_X = True
+#: ``x < 0``: the parabola bends left, ``b = -QF_LEFT_BEND / (4 c)`` (it crosses ``Re s = 0`` at ``t = 2 c /
+#: sqrt(QF_LEFT_BEND)``).
+QF_LEFT_BEND = 1.0
 
 
 def quadratic_form_sf(weights, x: float = 0.0, mult=None) -> float:
@@ -1274,17 +1286,22 @@ def quadratic_form_sf(weights, x: float = 0.0, mult=None) -> float:
     of one degree is ``scipy.stats.chi2``). The tail is the inversion integral of the form's moment generating
     function ``M(s) = prod_j (1 - 2 w_j s)^(-h_j / 2)``:
 
-        P(Q > x) = 1/(2 pi i) int_{c - i inf}^{c + i inf} M(s) exp(-s x) ds / s,   0 < c < 1 / (2 max w_j).
+        P(Q > x) = 1/(2 pi i) int_{c - i inf}^{c + i inf} M(s) exp(-s x) ds / s,   0 < c < 1 / (2 max w_j)
 
-    Where ``x > 0`` and a weight is positive (:data:`QF_SADDLE_CONTOUR`) it is taken on a parabola through the
-    saddlepoint of ``M(s) exp(-s x) / s`` that bends towards ``Re s -> +inf`` (:func:`_qf_sf_contour`): the
-    integrand is of the tail's own size and decays as a Gaussian, so a far tail is accurate relatively (within
-    2e-13 against chi-square tails from 0.5 to 1e-20, 1e-14 against a dominant weight with a chi-square or a
-    convolution beside it, tests/core/test_quadratic_form_tail.py), also where one weight dominates the others.
-    Elsewhere (``x <= 0``: the ratio of two quadratic forms below; or the contour's check fails) Imhof's form of
-    the same integral on the real line (Biometrika 48, 1961, eq 3.2; :func:`_qf_sf_imhof`), accurate absolutely
-    (below 3e-6 at 2 degrees of freedom, 1e-7 at 3, 1e-9 from 4 on; not where one weight dominates: there its
-    integrand decays as for one degree and its error reached 1e-4). The result clipped to [0, 1]. A ratio of two
+    (``c > 0`` when no weight is positive). Where ``x > 0`` and a weight is positive (:data:`QF_SADDLE_CONTOUR`) it
+    is taken on a parabola through the saddlepoint of ``M(s) exp(-s x) / s`` that bends towards ``Re s -> +inf``
+    (:func:`_qf_sf_contour`): the integrand is of the tail's own size and decays as a Gaussian, so a far tail is
+    accurate relatively (within 2e-13 against chi-square tails from 0.5 to 1e-20, 1e-14 against a dominant weight
+    with a chi-square or a convolution beside it, tests/core/test_quadratic_form_tail.py), also where one weight
+    dominates the others. Where ``x <= 0`` (:data:`QF_CONTOUR_NONPOSITIVE_X`; the ratio of two quadratic forms
+    below) on the same saddle's parabola bent towards ``Re s -> -inf`` (``x < 0``) or followed further (``x = 0``:
+    no ``exp(-s x)``, the integrand falls as a power of ``|s|``): within 3.5e-14 relative of beta tails, chi-square
+    lower tails and a 1-D integral (tests/core/test_lsq_tail_nonpositive.py); ``Q > x`` certain (all weights > 0,
+    ``x < 0``) is 1, impossible (all < 0, ``x = 0``) 0. Elsewhere (the constants off, or the contour's check
+    fails) Imhof's form of the same integral on the real line (Biometrika 48, 1961, eq 3.2; :func:`_qf_sf_imhof`),
+    accurate absolutely (below 3e-6 at 2 degrees of freedom, 1e-7 at 3, 1e-9 from 4 on; not where one weight
+    dominates: there its integrand decays as for one degree and its error reached 1e-4). The result clipped to
+    [0, 1]. A ratio of two
     quadratic forms of one vector, ``e^T B e / e^T D e > c``, is ``e^T (B - c D) e > 0``: weights of ``B - c D``,
     ``x`` 0 (what :func:`core.uncertainty.model_error_budget` tests when the noise's variance is the residuals'
     own). ``weights`` all 0: 1 if ``x < 0`` else 0.
@@ -1313,6 +1330,12 @@ def quadratic_form_sf(weights, x: float = 0.0, mult=None) -> float:
     s = float(np.max(np.abs(w)))   # scaled to the largest weight: u of order 1 where the integrand lives
     w, xs = w / s, float(x) / s
     if QF_SADDLE_CONTOUR and xs > 0 and w.max() > 0:
+        p = _qf_sf_contour(w, h, xs)
+        if p is not None:
+            return float(min(max(p, 0.0), 1.0))
+    elif QF_SADDLE_CONTOUR and QF_CONTOUR_NONPOSITIVE_X and xs <= 0:
+        if w.min() > 0 or (xs == 0 and w.max() < 0):   # Q > 0 >= x, or Q < 0 = x: certain either way
+            return 1.0 if w.min() > 0 else 0.0
         p = _qf_sf_contour(w, h, xs)
         if p is not None:
             return float(min(max(p, 0.0), 1.0))
@@ -1347,8 +1370,9 @@ def _qf_sf_imhof(w: np.ndarray, h: np.ndarray, xs: float) -> float:
 
 
 def _qf_sf_contour(w: np.ndarray, h: np.ndarray, xs: float, bend: float = 1.0):
-    """:func:`quadratic_form_sf`'s ``P(Q > x)`` on a contour through the saddlepoint (``x > 0``, some ``w_j > 0``;
-    weights scaled to a largest ``|w_j|`` of 1, ``xs`` alike), or None where the contour fails its check.
+    """:func:`quadratic_form_sf`'s ``P(Q > x)`` on a contour through the saddlepoint (``x > 0`` and some ``w_j > 0``,
+    or ``x = 0`` and weights of both signs, or ``x < 0`` and some ``w_j < 0``; weights scaled to a largest ``|w_j|``
+    of 1, ``xs`` alike), or None where the contour fails its check.
 
     The integrand ``g(s) = M(s) exp(-s x) / s`` is analytic but for the pole at 0 and the branch cuts
     ``[1 / (2 w_j), inf)`` of the positive weights (``(-inf, 1 / (2 w_j)]`` of the negative), and ``exp(-s x)``
@@ -1372,25 +1396,39 @@ def _qf_sf_contour(w: np.ndarray, h: np.ndarray, xs: float, bend: float = 1.0):
     ``exp(-s x)``), ``b`` is quartered, up to 8 times. None if that fails, or where the quadrature's error estimate
     exceeds 1e-10 of the result. In the bulk (``c`` below 0.8 ``p``: ``x`` near or below the mean, where
     ``exp(-x b t^2)`` falls slowly and the integrand oscillates on the way) ``b`` starts at a quarter (``c`` from
-    0.7 ``p``) or a sixteenth: on the MFB's weight sets there half the integrand's evaluations, the tails' alike."""
+    0.7 ``p``) or a sixteenth: on the MFB's weight sets there half the integrand's evaluations, the tails' alike.
+
+    ``x < 0`` (session 37): ``exp(-s x)`` vanishes as ``Re s -> -inf`` instead, so the parabola bends left,
+    ``b = -bend QF_LEFT_BEND / (4 c)`` (it crosses ``Re s = 0``, the pole's abscissa, at ``t = 2 c``, away from the
+    real axis: the region between it and ``Re s = c`` holds no singularity either); the saddle is on ``(0, p)``, or
+    on ``(0, inf)`` with no positive weight. ``x = 0`` (the ratio test): no ``exp(-s x)``, ``|g|`` falls only as
+    ``|s|^(-1 - sum h / 2)`` (as ``t^(-2 - sum h)`` on the parabola), so the parabola (bent right) is followed down
+    to ``exp(-80)`` on a grid out to ``2^50`` saddle widths, in pieces up to ``1e15`` widths: with 2 degrees of
+    freedom in all the ray's part is then below ``1e-14`` as for the others (at ``exp(-45)`` it was about 1e-12)."""
     import warnings
 
     from scipy import integrate, optimize
 
-    p = 0.5 / float(w.max())
+    p = 0.5 / float(w.max()) if w.max() > 0 else np.inf
     hw = h * w
 
-    def dlog(s):   # d/ds log g on the real axis, increasing from -inf at 0 to +inf at p
+    def dlog(s):   # d/ds log g on the real axis, increasing from -inf at 0 to +inf at p (to -x where p is inf)
         return float(np.sum(hw / (1.0 - 2.0 * w * s))) - xs - 1.0 / s
 
-    lo, hi = p * 1e-15, p * (1.0 - 1e-15)
-    if not (dlog(lo) < 0.0 < dlog(hi)):
+    if np.isfinite(p):
+        lo, hi = p * 1e-15, p * (1.0 - 1e-15)
+    else:   # no positive weight (then x < 0): dlog tends to -x > 0 and is positive from (sum h + 2) / |x| on
+        lo, hi = 1e-15 / (abs(xs) + float(h.sum())), (float(h.sum()) + 2.0) / abs(xs) if xs < 0 else np.inf
+    if not (np.isfinite(hi) and dlog(lo) < 0.0 < dlog(hi)):
         return None
     c = optimize.brentq(dlog, lo, hi, xtol=1e-300, rtol=1e-15, maxiter=300)
     oc = 1.0 - 2.0 * w * c
     sig = 1.0 / np.sqrt(float(np.sum(2.0 * hw * w / oc ** 2)) + 1.0 / c ** 2)   # the saddle's width in t
     log0 = -0.5 * float(h @ np.log(oc)) - c * xs - np.log(c)
-    grid = sig * np.geomspace(0.125, 2.0 ** 30, 94)
+    # x = 0: no exp(-s x), |g| falls only as a power of |s| (as t^-(2 + sum h) on the parabola): followed further
+    # down and out, so that the ray's part is bounded below 1e-14 also where 2 degrees of freedom fall slowly
+    floor = -45.0 if xs != 0.0 else -80.0
+    grid = sig * (np.geomspace(0.125, 2.0 ** 30, 94) if xs != 0.0 else np.geomspace(0.125, 2.0 ** 50, 150))
     up = np.geomspace(1.0, 2.0 ** 40, 81)   # the vertical ray's heights, in t_top
 
     def logabs(a, tt):   # log |g(a + i t) / g(c)|
@@ -1401,7 +1439,7 @@ def _qf_sf_contour(w: np.ndarray, h: np.ndarray, xs: float, bend: float = 1.0):
     def turn(b):   # t_top on the parabola of b, or None where it fails the check
         rel = logabs(c + b * grid ** 2, grid)
         rising = np.nonzero((rel[1:] > rel[:-1] + 0.5) | (rel[1:] > 3.0))[0]
-        stop = np.nonzero(rel < -45.0)[0]
+        stop = np.nonzero(rel < floor)[0]
         k = min(stop[0] if stop.size else grid.size, rising[0] if rising.size else grid.size)
         if k == grid.size or rel[:k + 1].max() > 3.0:
             return None
@@ -1412,7 +1450,10 @@ def _qf_sf_contour(w: np.ndarray, h: np.ndarray, xs: float, bend: float = 1.0):
         return top if ray <= 1e-14 * sig else None
 
     # flatter in the bulk (c below 0.8 p: x near or below the mean, exp(-x b t^2) slow): half the evaluations there
-    b = bend * (1.0 if c >= 0.8 * p else 0.25 if c >= 0.7 * p else 0.0625) * 0.25 / (p - c)
+    if xs >= 0.0:
+        b = bend * (1.0 if c >= 0.8 * p else 0.25 if c >= 0.7 * p else 0.0625) * 0.25 / (p - c)
+    else:   # x < 0: exp(-s x) vanishes as Re s -> -inf: the parabola bends left, towards the pole at 0
+        b = -bend * QF_LEFT_BEND * 0.25 / c
     for _ in range(9):
         top = turn(b)
         if top is not None:
@@ -1426,7 +1467,9 @@ def _qf_sf_contour(w: np.ndarray, h: np.ndarray, xs: float, bend: float = 1.0):
         return (np.exp(-0.5 * np.sum(h * np.log(1.0 - 2.0 * w * z)) - z * xs - np.log(z) - log0)
                 * complex(2.0 * b * t, 1.0)).imag
 
-    cuts = [0.0] + [sig * k for k in (1, 3, 10, 30, 100, 300, 1e3, 3e3, 1e4) if sig * k < top] + [top]
+    steps = (1, 3, 10, 30, 100, 300, 1e3, 3e3, 1e4) + (tuple(k * 10.0 ** e for e in range(4, 15) for k in (3, 10))
+                                                       if xs == 0.0 else ())
+    cuts = [0.0] + [sig * k for k in steps if sig * k < top] + [top]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", integrate.IntegrationWarning)
         parts = [integrate.quad(f, t0, t1, epsabs=1e-14 * sig, epsrel=1e-12, limit=200)

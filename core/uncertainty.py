@@ -244,11 +244,11 @@ MODEL_ERROR_P = 1.3498980316300946e-3
 #: beside an entered table, and a test of the tables' sum, did not recover EYY (the shared 45 deg touches
 #: let EXX's fine table hold it). docs/discovery-studies.md "Session 30: identify's model-error budget ...".
 MODEL_ERROR_EXACT_GATE = False
-#: ``model_error_p`` (the exact tails: an SVD of each table's ``R Phi`` and Imhof's quadrature, about half of a
-#: cross-pocket self-calibration's CPU) is computed when first read (``ModelErrorBudget.p``: ``vmt identify``'s
-#: report) or when :data:`MODEL_ERROR_EXACT_GATE` gates on it; until then the budget holds the tables' ``R Phi``
-#: (dense), so beyond this many cells in all it is computed at once instead (same doubles either way; session 31,
-#: ripple31).
+#: ``model_error_p`` (the exact tails: an SVD of each table's ``R Phi`` and its tail, Imhof's quadrature then, about
+#: half of a cross-pocket self-calibration's CPU; the saddlepoint contour since session 37, 1.6 x Imhof's per tail)
+#: is computed when first read (``ModelErrorBudget.p``: ``vmt identify``'s report) or when
+#: :data:`MODEL_ERROR_EXACT_GATE` gates on it; until then the budget holds the tables' ``R Phi`` (dense), so beyond
+#: this many cells in all it is computed at once instead (same doubles either way; session 31, ripple31).
 MODEL_ERROR_P_LAZY_CELLS = 4.0e6
 #: Largest ``n_touches x fine nodes`` for which the budget is computed (dense work arrays).
 MODEL_ERROR_MAX_CELLS = 3.0e7
@@ -612,7 +612,7 @@ def model_error_budget(des: SelfCalDesign, est: LinearEstimator, touches: Touche
     rr_all = float(r @ r)
 
     def tails(RP_=RP, q_=q, dof_=dof):
-        """The exact tails ``model_error_p`` per table (an SVD and Imhof's quadrature each)."""
+        """The exact tails ``model_error_p`` per table (an SVD and :func:`core.lsq.quadratic_form_sf` at 0 each)."""
         return {t: _null_tail(rp, float(qk), rr_all, dof_) for t, rp, qk in zip(tables, RP_, q_)}
 
     p_tail = tails   # on first use of ModelErrorBudget.p (a report), unless the gate needs it now

@@ -35,6 +35,13 @@ Figures:
   perturbed feature refitted alone by the full :func:`core.fit.fit_cylinder`
   / :func:`core.fit.fit_plane`), on the same inputs in the same run, and
   ``mfb_gain_max_abs_diff`` between the two (dimensionless, |G| ~ 1).
+- ``mfb_3axis_exact_tails_s``: the exact tails of the run's 19 residual tests (18 model-error
+  shares and the between-node test: :func:`core.lsq.quadratic_form_sf`, on the saddlepoint contour
+  since session 36) at their statistics, the weight sets recorded from one ``mfb-3axis`` run (seed 1,
+  ``--mc 0``) with :data:`core.volumetric.EXACT_TAIL_NEAR_LEVEL` off (all 19 exact), beside
+  ``mfb_3axis_exact_tails_imhof_ref_s``: the same tails by Imhof's quadrature
+  (:func:`core.lsq._qf_sf_imhof`, the method before session 36) on the same weights; each the sum over
+  the 19, best of 3, interleaved (:func:`exact_tails`). ``mfb_3axis_exact_tails_count`` the tails timed.
 """
 
 from __future__ import annotations
@@ -49,6 +56,7 @@ REFERENCES = {
     "mfb_3axis_budget_run_s": "mfb_3axis_budget_run_before_ref_s",
     "mfb_gain_s": "mfb_gain_refit_reference_s",
     "mfb_3axis_identify_only_s": "mfb_3axis_identify_rows_before_ref_s",
+    "mfb_3axis_exact_tails_s": "mfb_3axis_exact_tails_imhof_ref_s",
 }
 #: figure -> the issue's target
 TARGETS = {"mfb_3axis_end_to_end_s": "< 1 s (issue 19 item 3)"}
@@ -235,6 +243,49 @@ def plan_gain_inputs(name: str = "mfb-3axis") -> list[tuple]:
     return out
 
 
+def residual_test_weights(name: str = "mfb-3axis", seed: int = 1) -> list[tuple[np.ndarray, float]]:
+    """``(weights, statistic)`` of every residual test's exact tail in one run of ``name`` (``--mc 0``), each
+    computed (:data:`core.volumetric.EXACT_TAIL_NEAR_LEVEL` off for the run), as :func:`core.lsq.quadratic_form_sf`
+    was called."""
+    from core import lsq, volumetric as vol
+    from scenarios import mfb as S
+
+    seen, real, near = [], lsq.quadratic_form_sf, vol.EXACT_TAIL_NEAR_LEVEL
+
+    def spy(weights, x=0.0, mult=None):
+        seen.append((np.array(weights, float), float(x)))
+        return real(weights, x, mult)
+
+    lsq.quadratic_form_sf, vol.EXACT_TAIL_NEAR_LEVEL = spy, False
+    try:
+        S.run(name, seed=seed, mc_runs=0)
+    finally:
+        lsq.quadratic_form_sf, vol.EXACT_TAIL_NEAR_LEVEL = real, near
+    return seen
+
+
+def exact_tails(sets, rounds: int = 3) -> tuple[float, float]:
+    """(contour s, Imhof s): the sum over ``sets`` of :func:`core.lsq.quadratic_form_sf` (the contour, its checks
+    and scaling) and of :func:`core.lsq._qf_sf_imhof` on the same weights scaled as it scales them, the better of
+    ``rounds`` each, interleaved (the order alternating between rounds)."""
+    from core import lsq
+
+    scaled = [(w / np.abs(w).max(), np.ones(w.size), x / np.abs(w).max()) for w, x in sets]
+    con, imh = [], []
+    for k in range(rounds):
+        for which in ((0, 1) if k % 2 == 0 else (1, 0)):
+            t0 = time.perf_counter()
+            if which == 0:
+                for w, x in sets:
+                    lsq.quadratic_form_sf(w, x)
+                con.append(time.perf_counter() - t0)
+            else:
+                for w, h, x in scaled:
+                    lsq._qf_sf_imhof(w, h, x)
+                imh.append(time.perf_counter() - t0)
+    return min(con), min(imh)
+
+
 def run() -> dict:
     from core import mfb
     from scenarios import mfb as S
@@ -324,6 +375,12 @@ def run() -> dict:
         b_before = S.budget_run("mfb-3axis", 1)
         out["mfb_3axis_budget_run_before_ref_s"] = round(time.perf_counter() - t0, 3)
     out["mfb_3axis_budget_run_max_error_diff"] = float(np.abs(b_now["error"] - b_before["error"]).max())
+    # the residual tests' exact tails, on the contour and by Imhof's quadrature, on the same weight sets
+    sets = residual_test_weights()
+    t_con, t_imh = exact_tails(sets)
+    out["mfb_3axis_exact_tails_s"] = round(t_con, 4)
+    out["mfb_3axis_exact_tails_imhof_ref_s"] = round(t_imh, 4)
+    out["mfb_3axis_exact_tails_count"] = len(sets)
     return out
 
 

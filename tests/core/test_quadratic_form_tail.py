@@ -35,8 +35,8 @@ def test_equal_weights_are_chi_square_tails_to_rounding():
     for k in (2, 3, 5, 40, 400):
         for p in (0.9, 0.5, 1e-2, 1e-5, 1e-8, 1e-12, 1e-20):
             x = float(stats.chi2.isf(p, k))
-            assert quadratic_form_sf(np.full(k, 3.0), 3.0 * x) == pytest.approx(p, rel=1e-12), (k, p)
-            assert quadratic_form_sf([0.7], 0.7 * x, [k]) == pytest.approx(p, rel=1e-12), (k, p)
+            assert quadratic_form_sf(np.full(k, 3.0), 3.0 * x) == pytest.approx(p, rel=1e-12, abs=0), (k, p)
+            assert quadratic_form_sf([0.7], 0.7 * x, [k]) == pytest.approx(p, rel=1e-12, abs=0), (k, p)
 
 
 def test_two_weights_of_even_multiplicity_against_their_finite_sums():
@@ -58,8 +58,8 @@ def test_two_weights_of_even_multiplicity_against_their_finite_sums():
         assert sf22(0.0) == pytest.approx(1.0) and sf24(0.0) == pytest.approx(1.0)   # the sums themselves
         for p in TAILS:
             x = -2.0 * w1 * np.log(p)   # about the tail p
-            assert quadratic_form_sf([w1, w2], x, [2, 2]) == pytest.approx(sf22(x), rel=1e-11), (w1, w2, p)
-            assert quadratic_form_sf([w1, w2], x, [2, 4]) == pytest.approx(sf24(x), rel=1e-11), (w1, w2, p)
+            assert quadratic_form_sf([w1, w2], x, [2, 2]) == pytest.approx(sf22(x), rel=1e-11, abs=0), (w1, w2, p)
+            assert quadratic_form_sf([w1, w2], x, [2, 4]) == pytest.approx(sf24(x), rel=1e-11, abs=0), (w1, w2, p)
 
 
 def test_a_dominant_weight_of_two_degrees_beside_many_small_equal_ones():
@@ -73,7 +73,7 @@ def test_a_dominant_weight_of_two_degrees_beside_many_small_equal_ones():
     for a, m in ((1e-3, 300), (5e-3, 300), (1e-2, 500)):
         for p in TAILS:
             x = a * m - 2.0 * np.log(p)
-            assert quadratic_form_sf([1.0, a], x, [2, m]) == pytest.approx(sf(a, m, x), rel=1e-11), (a, m, p)
+            assert quadratic_form_sf([1.0, a], x, [2, m]) == pytest.approx(sf(a, m, x), rel=1e-11, abs=0), (a, m, p)
 
 
 def test_a_dominant_weight_of_one_degree_against_a_convolution_where_imhof_failed():
@@ -87,11 +87,11 @@ def test_a_dominant_weight_of_one_degree_against_a_convolution_where_imhof_faile
         for p in TAILS:
             x = float(stats.chi2.isf(p, 1)) + a * m
             ref = _dominant_one_dof(1.0, a, m, x)
-            assert quadratic_form_sf([1.0, a], x, [1, m]) == pytest.approx(ref, rel=1e-9), (a, m, p)
+            assert quadratic_form_sf([1.0, a], x, [1, m]) == pytest.approx(ref, rel=1e-9, abs=0), (a, m, p)
     w = np.array([1.5489779657860352e-15, 3.356912282963863e-22])   # mfb-3axis seed 12 (mfb35), real scale
     x = 3.090691179289217e-14   # Satterthwaite's p there is the per-interval level 7.94e-6
     ref = _dominant_one_dof(w[0], w[1], 1, x)
-    assert 7e-6 < ref < 9e-6 and quadratic_form_sf(w, x) == pytest.approx(ref, rel=1e-9)
+    assert 7e-6 < ref < 9e-6 and quadratic_form_sf(w, x) == pytest.approx(ref, rel=1e-9, abs=0)
     old = lsq._qf_sf_imhof(w / w[0], np.ones(2), x / w[0])
     assert abs(old - ref) > 0.1 * ref   # Imhof's quadrature: 0 here
 
@@ -143,10 +143,10 @@ def test_mixed_signs_and_negative_x_against_exponentials():
     for w1, w2 in ((1.0, 0.4), (0.3, 1.0)):
         for x in (0.5, 5.0, 20.0, 40.0):
             assert quadratic_form_sf([w1, -w2], x, [2, 2]) == pytest.approx(w1 / (w1 + w2) * np.exp(-x / (2 * w1)),
-                                                                             rel=1e-12)
+                                                                             rel=1e-12, abs=0)
     for x in (0.1, 5.0):
         ref = integrate.quad(lambda z: special.k0(z) / np.pi, x / 2, np.inf, epsabs=0.0, epsrel=1e-13, limit=200)[0]
-        assert quadratic_form_sf([1.0, -1.0], x) == pytest.approx(ref, rel=1e-12)
+        assert quadratic_form_sf([1.0, -1.0], x) == pytest.approx(ref, rel=1e-12, abs=0)
     w1, w2 = 1.0, 0.4
     for x in (-3.0,):
         assert quadratic_form_sf([w1, -w2], x, [2, 2]) == pytest.approx(
@@ -156,11 +156,14 @@ def test_mixed_signs_and_negative_x_against_exponentials():
 def test_the_contour_off_is_imhof_as_before(monkeypatch):
     """QF_SADDLE_CONTOUR off: every tail is Imhof's quadrature, the same doubles as core.lsq._qf_sf_imhof (the
     code before session 36); on, x > 0 with a positive weight takes the contour (here within Imhof's stated 1e-9
-    at 12 degrees of it), x <= 0 Imhof's."""
+    at 12 degrees of it), x <= 0 Imhof's only with QF_CONTOUR_NONPOSITIVE_X off (session 37; on, the contour:
+    w1 / (w1 + w2) = 2/3 exactly at x = 0, where Imhof's is 1.4e-13 off; tests/core/test_lsq_tail_nonpositive.py)."""
     w, h, x = np.array([1.0, 0.5, 0.25]), np.full(3, 4.0), 24.0
     on = quadratic_form_sf(w, x, h)
     monkeypatch.setattr(lsq, "QF_SADDLE_CONTOUR", False)
     off = quadratic_form_sf(w, x, h)
     assert off == lsq._qf_sf_imhof(w, h, x) and on == pytest.approx(off, abs=1e-9) and on != off
     monkeypatch.setattr(lsq, "QF_SADDLE_CONTOUR", True)
+    assert quadratic_form_sf([1.0, -0.5], 0.0, [2, 2]) == pytest.approx(2.0 / 3.0, rel=1e-14, abs=0)
+    monkeypatch.setattr(lsq, "QF_CONTOUR_NONPOSITIVE_X", False)
     assert quadratic_form_sf([1.0, -0.5], 0.0, [2, 2]) == lsq._qf_sf_imhof(np.array([1.0, -0.5]), np.full(2, 2.0), 0.0)

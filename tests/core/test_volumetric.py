@@ -573,6 +573,7 @@ def test_between_node_test_takes_the_exact_tail_near_its_level_and_labels_the_ap
             assert ex.p * ex.intervals >= vol.BETWEEN_NODES_P and on.p != ex.p
             assert on.p * on.intervals >= vol.EXACT_TAIL_FACTOR * vol.BETWEEN_NODES_P
     # the share (at 3e-8 m every table far from its level): Satterthwaite's p, labelled; all_exact: the exact tails
+    monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", True)   # off by default since session 37: the rule itself
     sh = vol.model_error_share(res, meas, 3e-8, u0, noise=nm)
     assert set(sh.p_approx) == set(vol.MOTION) and sh.as_dict()["p_approx"] == list(vol.MOTION)
     monkeypatch.setattr(vol, "EXACT_TAIL_NEAR_LEVEL", False)
