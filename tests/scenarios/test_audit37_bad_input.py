@@ -1,0 +1,29 @@
+"""Malformed input of kinds no earlier test gave (audit37): one line naming the problem, exit 2, no
+traceback, nothing written."""
+
+import pytest
+
+from scenarios.cli import main
+from tests.cli_helpers import one_line_error
+
+
+@pytest.fixture
+def plan(tmp_path):
+    p = tmp_path / "plan.csv"
+    assert main(["plan", "grid", "--x-mm", "0:20:10", "--y-mm", "0:10:10", "--z-mm", "0", "--stylus-r-mm", "1.5",
+                 "--out", str(p)]) == 0
+    return p
+
+
+@pytest.mark.parametrize("url", ["grbl://127.0.0.1:99999", "grbl://127.0.0.1:abc", "grbl://127.0.0.1:-1",
+                                 "tcp://[::1:5000", "serial://[x"])
+def test_probe_a_controller_url_urllib_cannot_read(plan, tmp_path, capsys, url):
+    """A port out of 0-65535, a port that is not a number or a torn IPv6 bracket: urllib raises ValueError
+    (`Port out of range 0-65535`, `Invalid IPv6 URL`), which reached the user as a 29-line traceback and
+    exit 1 before audit37."""
+    capsys.readouterr()
+    out = tmp_path / "log.csv"
+    assert main(["probe", "--controller", url, "--plan", str(plan), "--out", str(out),
+                 "--limits-mm", "X-20:200,Y-20:200,Z-50:100", "--safe-z-mm", "50"]) == 2
+    one_line_error(capsys, "vmt probe: error:", repr(url), "PORT a whole number 1-65535")
+    assert not out.exists()
