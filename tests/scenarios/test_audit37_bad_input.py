@@ -27,3 +27,17 @@ def test_probe_a_controller_url_urllib_cannot_read(plan, tmp_path, capsys, url):
                  "--limits-mm", "X-20:200,Y-20:200,Z-50:100", "--safe-z-mm", "50"]) == 2
     one_line_error(capsys, "vmt probe: error:", repr(url), "PORT a whole number 1-65535")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("url", ["virtual:nosuch", "virtual:simple"])
+def test_probe_a_virtual_scene_it_does_not_have_names_its_own_option(plan, tmp_path, capsys, url):
+    """`vmt probe --controller virtual:nosuch` answered in `vmt machine serve`'s words, `--scene 'nosuch':
+    expected simple or one of ...`: an option probe does not have, and `simple`, which `virtual:simple`
+    then refused the same way (probe's built-in scene is `virtual:`). Now the line names --controller."""
+    capsys.readouterr()
+    out = tmp_path / "log.csv"
+    assert main(["probe", "--controller", url, "--plan", str(plan), "--out", str(out),
+                 "--limits-mm", "X-20:200,Y-20:200,Z-50:100", "--safe-z-mm", "50"]) == 2
+    err = one_line_error(capsys, "vmt probe: error: --controller", "virtual: (the built-in scene)", "cross-pocket")
+    assert "--scene" not in err and "simple or" not in err
+    assert not out.exists()
