@@ -41,3 +41,14 @@ def test_probe_a_virtual_scene_it_does_not_have_names_its_own_option(plan, tmp_p
     err = one_line_error(capsys, "vmt probe: error: --controller", "virtual: (the built-in scene)", "cross-pocket")
     assert "--scene" not in err and "simple or" not in err
     assert not out.exists()
+
+
+def test_bench_only_a_text_that_selects_no_benchmark(tmp_path, capsys):
+    """`vmt bench --only nosuch` (a typo of a benchmark's name) ran nothing and wrote an empty figures
+    document over --json, bench/results.json by default, exit 0. Now refused before anything runs: one line
+    naming the text and the benchmarks, the --json file's bytes untouched."""
+    out = tmp_path / "results.json"
+    out.write_text('{"kept": true}\n')
+    assert main(["bench", "--json", str(out), "--only", "bench_discovr"]) == 2
+    one_line_error(capsys, "vmt bench: error: --only 'bench_discovr'", "bench_discover")
+    assert out.read_text() == '{"kept": true}\n'
