@@ -52,3 +52,18 @@ def test_bench_only_a_text_that_selects_no_benchmark(tmp_path, capsys):
     assert main(["bench", "--json", str(out), "--only", "bench_discovr"]) == 2
     one_line_error(capsys, "vmt bench: error: --only 'bench_discovr'", "bench_discover")
     assert out.read_text() == '{"kept": true}\n'
+
+
+def test_an_allocation_beyond_memory_is_one_line_and_puts_the_outputs_back(tmp_path, capsys):
+    """`vmt identify --mc 1000000000` (a few zeros too many) asks numpy for terabytes at once (581 GiB for 78 touches): a 26-line
+    traceback of numpy's _ArrayMemoryError, exit 1, before audit37. Any command's MemoryError is now one line
+    with numpy's words, exit 2, and the run's outputs are put back (an earlier --json kept byte for byte)."""
+    log = tmp_path / "log.csv"
+    assert main(["simulate", "cross-pocket", "--errors", "none", "--noise-um", "0.3", "--out", str(log)]) == 0
+    out = tmp_path / "id.json"
+    out.write_text("earlier\n")
+    capsys.readouterr()
+    assert main(["identify", str(log), "--json", str(out), "--mc", "1000000000"]) == 2
+    one_line_error(capsys, "vmt identify: error: out of memory (Unable to allocate", "--mc")
+    assert out.read_text() == "earlier\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["id.json", "log.csv"]
