@@ -29,7 +29,7 @@ from typing import Iterable, Iterator, Mapping
 import numpy as np
 
 from .atomic import input_problem, write_text_atomic
-from .exceptions import ProbeLogError, counted
+from .exceptions import ConfigError, ProbeLogError, counted
 
 FORMAT = "probe-log/1"
 #: Format of :func:`summary` (what ``vmt check --json`` prints).
@@ -1084,6 +1084,48 @@ def far_from_nominal(log: ProbeLog, ok: np.ndarray, lines: np.ndarray | None, wa
                 f"{more}: a typed or misplaced reading? Every fit takes it as a touch")
 
 
+#: The metadata key of the probe's offsets J a log's readings were logged with (``X,Y,Z`` mm; docs/formats.md,
+#: "Metadata vmt writes and reads"; written by :mod:`hardware.campaign`).
+TOOL_OFFSET_KEY = "tool_offset_mm"
+
+
+def parse_tool_offset_mm(text: str, name: str = "--tool-offset-mm") -> tuple[float, float, float]:
+    """``"0,0,150"`` -> ``(0.0, 0.0, 150.0)``: the probe's offsets J, mm, three finite numbers each within
+    :data:`LENGTH_MAX_MM`; else a ConfigError naming ``name`` (the option, or the metadata key) and the value.
+    The one parser of ``--tool-offset-mm`` and of a log's ``tool_offset_mm`` line
+    (:func:`hardware.campaign.parse_tool_offset`)."""
+    try:
+        v = tuple(float(x) for x in str(text).split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v):
+        raise ConfigError(f"{name} {text!r}: expected X,Y,Z, three finite numbers, mm (the probe's offsets J: "
+                          "spindle gauge point minus stylus-tip centre)")
+    if max(abs(x) for x in v) > LENGTH_MAX_MM:
+        raise ConfigError(f"{name} {text!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
+    return v
+
+
+def _check_meta_values(meta: Mapping, src) -> None:
+    """Refuse a ``kinematic_chain`` that is no chain and a ``tool_offset_mm`` that is not three finite lengths,
+    naming the file (audit37: ``vmt check`` passed both, which ``identify``, ``discover`` and ``vcmm`` then
+    refused: a file ``check`` accepts is a file they accept, docs/formats.md). An empty value is no statement."""
+    from .chain import parse_chain
+
+    chain = meta.get("kinematic_chain")
+    if chain not in (None, ""):
+        try:
+            parse_chain(chain)
+        except ConfigError as e:
+            raise ProbeLogError(f"{src}: metadata kinematic_chain: {e}") from None
+    J = meta.get(TOOL_OFFSET_KEY)
+    if J is not None:
+        try:
+            parse_tool_offset_mm(J, TOOL_OFFSET_KEY)
+        except ConfigError as e:
+            raise ProbeLogError(f"{src}: metadata {e}") from None
+
+
 def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = None) -> dict:
     """Check ``log`` (raise :class:`ProbeLogError` naming the first problem); normalise in place the unit vectors
     printed to a step up to :data:`UNIT_STEP_MAX` and return those steps (:attr:`ProbeLog.unit_steps`).
@@ -1243,6 +1285,7 @@ def _validate(log: ProbeLog, lines: np.ndarray | None, warnings: list | None = N
                     f"{_where(src, r, lines)}: target {tgt!r} has artefact-frame nominal "
                     f"{_xyz(w[r])} mm in set-up {c['setup'][r]!r} but "
                     f"{_xyz(w[r0])} mm in set-up {c['setup'][r0]!r}")
+    _check_meta_values(log.meta, src)
     sr = log.meta.get("stylus_r_mm")
     if sr not in (None, ""):
         if not is_number(sr):

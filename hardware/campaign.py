@@ -65,8 +65,8 @@ from typing import Callable
 import numpy as np
 
 from core.exceptions import ConfigError, HardwareError, PlanError, ProbeLogError, counted
-from core.probelog import (FORMAT, MEASURED, NUMBER_FORMAT_KEY, TEXT_COLUMNS, ProbeLog, number_format_value,
-                           parse_number_format, parse_probe_log, step_decimals)
+from core.probelog import (FORMAT, MEASURED, NUMBER_FORMAT_KEY, TEXT_COLUMNS, TOOL_OFFSET_KEY, ProbeLog,
+                           number_format_value, parse_number_format, parse_probe_log, step_decimals)
 from core.units import MM
 
 from .backend import ALARMS, ProbeResult
@@ -155,27 +155,19 @@ def parse_limits(text: str) -> tuple:
     return lim
 
 
-#: The metadata key of the tool offset J a campaign applied (``# tool_offset_mm: X,Y,Z``, mm; the positioning
-#: log's key of the same J, docs/formats.md). probe-log/1 lets a writer add metadata keys, and a reader that
-#: does not know one keeps it and ignores it: the readings stay the tip centres the format defines.
-TOOL_OFFSET_KEY = "tool_offset_mm"
+# TOOL_OFFSET_KEY (core.probelog's, imported above): the metadata key of the tool offset J a campaign applied
+# (``# tool_offset_mm: X,Y,Z``, mm; the positioning log's key of the same J, docs/formats.md). probe-log/1 lets
+# a writer add metadata keys, and a reader that does not know one keeps it and ignores it: the readings stay the
+# tip centres the format defines. vmt's reader refuses a value that is not three lengths (audit37).
 
 
 def parse_tool_offset(text: str, name: str = "--tool-offset-mm") -> tuple[float, float, float]:
     """``"0,0,150"`` -> ``(0.0, 0.0, 150.0)``: the probe's offsets J, mm, three finite numbers each within
-    :data:`core.probelog.LENGTH_MAX_MM`; else a ConfigError naming the option ``name`` and the value."""
-    from core.probelog import LENGTH_MAX_MM
+    :data:`core.probelog.LENGTH_MAX_MM`; else a ConfigError naming the option ``name`` and the value
+    (:func:`core.probelog.parse_tool_offset_mm`, which the log reader applies to the line too)."""
+    from core.probelog import parse_tool_offset_mm
 
-    try:
-        v = tuple(float(x) for x in str(text).split(","))
-    except ValueError:
-        v = ()
-    if len(v) != 3 or not all(math.isfinite(x) for x in v):
-        raise ConfigError(f"{name} {text!r}: expected X,Y,Z, three finite numbers, mm (the probe's offsets J: "
-                          "spindle gauge point minus stylus-tip centre)")
-    if max(abs(x) for x in v) > LENGTH_MAX_MM:
-        raise ConfigError(f"{name} {text!r}: beyond {LENGTH_MAX_MM:g} mm, no probe's offset")
-    return v
+    return parse_tool_offset_mm(text, name)
 
 
 def tool_offset_text(J) -> str:

@@ -323,11 +323,16 @@ class SerialLink(_Link):
 
 def open_link(url: str):
     """A link from ``grbl://HOST:PORT`` or ``serial:///dev/ttyX[?baud=N]``."""
-    u = urlsplit(url)
+    try:
+        u = urlsplit(url)
+        port = u.port if u.scheme in ("grbl", "tcp") else None
+    except ValueError:      # urllib's words for a port out of 0-65535, not a number, a torn [IPv6] (audit37: a traceback)
+        raise HardwareError(f"machine {url!r}: not grbl://HOST:PORT (PORT a whole number 1-65535) or "
+                            f"serial:///dev/ttyX") from None
     if u.scheme in ("grbl", "tcp"):
-        if not u.hostname or u.port is None:
+        if not u.hostname or port is None:
             raise HardwareError(f"machine {url!r}: expected grbl://HOST:PORT")
-        return TcpLink(u.hostname, u.port)
+        return TcpLink(u.hostname, port)
     if u.scheme == "serial":
         if not u.path:
             raise HardwareError(f"machine {url!r}: expected serial:///dev/ttyX")

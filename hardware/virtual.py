@@ -118,6 +118,11 @@ def open_backend(url: str, *, timeout_s: float = 60.0, rotary: bool = False, on_
         return VirtualBackend(builtin_machine(), name="virtual:builtin")
     if url.startswith("virtual:") and url[len("virtual:"):].lstrip("/"):
         scene = url[len("virtual:"):].lstrip("/")
+        from sim.catalog import CATALOG
+
+        if scene not in CATALOG:    # sim_machine's own words name machine serve's --scene (audit37)
+            raise HardwareError(f"--controller {url!r}: no scene {scene!r}: expected virtual: (the built-in "
+                                f"scene) or virtual:SCENE, SCENE one of {', '.join(sorted(CATALOG))}")
         return VirtualBackend(sim_machine(scene), name=f"virtual:{scene}")
     raise HardwareError(f"--controller {url!r}: expected grbl://HOST:PORT, serial:///dev/ttyX, virtual: "
                         "or virtual:SCENE (cross-pocket, pin-circle, freeform, mfb)")

@@ -28,7 +28,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from scenarios.bench import expected_walls, merge_documents, run_all, write_figures
+    from scenarios.bench import BENCHES, _selects, expected_walls, merge_documents, run_all, short_name, write_figures
     from scenarios.bench.table import read_results, update_readme
 
     from core.exceptions import ConfigError
@@ -41,6 +41,10 @@ def run(args) -> int:
                               "with it")
         print(f"wrote {update_readme(args.readme, args.from_json)}")
         return 0
+    for o in args.only:     # a text that selects nothing ran nothing and wrote an empty --json (audit37)
+        if not any(_selects(o, m, short_name(m)) for m in BENCHES):
+            raise ConfigError(f"--only {o!r}: no benchmark's name contains it (the benchmarks: "
+                              f"{', '.join(short_name(m) for m in BENCHES)})")
     if args.only and args.readme is not None and not args.merge:
         raise ConfigError("--only with --readme: the table would hold only the benchmarks run now; add --merge "
                           "to keep the others' figures from --json")

@@ -506,6 +506,11 @@ def _run_command(args, name, ins, outs, dirs) -> int:
     except OSError as e:
         print(f"vmt {name}: error: {os_error_line(e)}", file=sys.stderr)
         return 2
+    except MemoryError as e:    # numpy's own words (audit37: `vmt identify --mc 1000000000` was a traceback, exit 1)
+        said = str(e).strip() or "an allocation failed"
+        print(f"vmt {name}: error: out of memory ({said}); nothing written: a smaller input or option (--mc, "
+              f"--grid-mm, the log) needs less", file=sys.stderr)
+        return 2
     except KeyboardInterrupt as e:   # its text, when a command gave it one, says what is kept (vmt probe's rows)
         sig = getattr(e, "signum", signal.SIGINT)
         what = "interrupted" if sig == signal.SIGINT else f"terminated ({signal.Signals(sig).name})"

@@ -230,7 +230,7 @@ def run_show(args) -> int:
     from core.units import DEG, MM
     from sim.machine import Machine
     from sim.machinefile import truth_machine
-    from sim.machinefile import describe_error
+    from sim.machinefile import describe_error, stroke_positions
 
     spec = truth_machine(args.machine, args.errors)
     cfg = spec.config
@@ -267,7 +267,7 @@ def run_show(args) -> int:
                 j = cfg.J_m[iso.LINEAR_AXES.index(sy.axis)]
                 lo, hi = lo + j, hi + j
                 where = f"over the stroke + J ({sy.axis} {lo / MM:g}..{hi / MM:g} mm, axis positions)"
-            v = np.asarray(f(np.linspace(lo, hi, 201)), float) * 1e6
+            v = np.asarray(f(stroke_positions(f, (lo, hi))), float) * 1e6
             rng_txt = f"  [{v.min():+.3f} .. {v.max():+.3f}] {where}"
         print(f"  {name:5s} {sy.report_unit:4s} {describe_error(f, sy)}{rng_txt}")
     m = Machine(cfg)

@@ -144,7 +144,8 @@ def test_discover_command_lets_the_probe_log_go_before_the_search(monkeypatch, t
     cols = dict(base.columns)
     cols["spindle_load"] = np.linspace(0.0, 1.0, base.n)  # an extra numeric column: a covariate of its own
     path = tmp_path / "log.csv"
-    P.write_probe_log(path, P.make_log(cols, {**base.meta, "kinematic_chain": "xyc"}, validate=False))
+    chain = "V[w-X-Y-b-Z-(C)-t]"    # a chain, passed on (the reader refuses one that is not, audit37)
+    P.write_probe_log(path, P.make_log(cols, {**base.meta, "kinematic_chain": chain}, validate=False))
     read, refs, seen = P.read_probe_log, [], []
 
     def reading(p, **kw):   # (the CLI's reader, scenarios.cli.reading, passes its progress)
@@ -164,7 +165,7 @@ def test_discover_command_lets_the_probe_log_go_before_the_search(monkeypatch, t
     assert gone, "the probe log is still held while discover runs"
     log = read(path)
     ref = extra_columns(log, from_log(log).row)
-    assert t.n == log.n and kw["chain"] == "xyc" and kw["grid_step_mm"] == 5.0 and list(kw["extra"]) == ["spindle_load"]
+    assert t.n == log.n and kw["chain"] == chain and kw["grid_step_mm"] == 5.0 and list(kw["extra"]) == ["spindle_load"]
     assert all(np.array_equal(kw["extra"][k], ref[k]) for k in ref)
 
 
