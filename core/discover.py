@@ -147,6 +147,11 @@ What it does, in order, and the statistics behind each step
    won is decided again: the search resumes beside the causes that stay,
    every dropped cause kept out (``round_reopened_without`` in the
    evidence of what it adopts), and what it adopts meets this check too.
+   With :data:`PAIR_REFUSED_DECIDED` (built, off) a cause dropped beside a
+   cause adopted after it, which is then refused when judged again without
+   it, is judged once more beside the causes that stay (the search's tests,
+   then this check): passing, it is restored (``pair_restored_over`` in its
+   evidence) and the refused cause kept out of every round after.
 6. **Unexplained**: first a penalised named cause's ridge is chosen again
    over its grid in the model as it now stands (its rows and the causes
    beside it final: :func:`_penalties_rechosen`, session 20); where it
