@@ -7344,8 +7344,12 @@ RECHOSEN_ROUND_REOPENED = False
 #: be adopted and drop A again: the loop), and A is restored once per run (the loop guard: dropped a second time, it
 #: stays dropped). Not where outliers were put back. Session 37 (pair37): sel36's third gap, gen_a lobing_per_setup
 #: 1153 (probe_lobing dropped at 0.57 of a smooth in approach_azimuth beside lobing_per_setup, lobing_per_setup
-#: refused without it for its plainer counter, common lobing, at 85 % of its signal). Off: built, measured, for
-#: the lead (docs/discovery.md, "Session 37: a pair of causes each refused beside the other").
+#: refused without it for its plainer counter, common lobing, at 85 % of its signal): on, ``probe_lobing?``,
+#: ambiguous with lobing_per_setup (the truth; the data cannot tell lobes turned by small angles from fixed lobes
+#: with a wobble). Measured on 1,661 tuning campaigns (gen_a, gen_b, gen_c; effect-free 120): a dropped cause judged
+#: again in 43, restored in 1153 alone, which is the one campaign that moves; no right -> wrong, no workpiece check
+#: moved, no false alarm. Off: built, measured, for the lead (docs/discovery.md, "Session 37: a pair of causes each
+#: refused beside the other").
 PAIR_REFUSED_DECIDED = False
 
 
