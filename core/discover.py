@@ -147,6 +147,11 @@ What it does, in order, and the statistics behind each step
    won is decided again: the search resumes beside the causes that stay,
    every dropped cause kept out (``round_reopened_without`` in the
    evidence of what it adopts), and what it adopts meets this check too.
+   With :data:`PAIR_REFUSED_DECIDED` (built, off) a cause dropped beside a
+   cause adopted after it, which is then refused when judged again without
+   it, is judged once more beside the causes that stay (the search's tests,
+   then this check): passing, it is restored (``pair_restored_over`` in its
+   evidence) and the refused cause kept out of every round after.
 6. **Unexplained**: first a penalised named cause's ridge is chosen again
    over its grid in the model as it now stands (its rows and the causes
    beside it final: :func:`_penalties_rechosen`, session 20); where it
@@ -3769,6 +3774,47 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 break
         return terms, rows_, st_, folds_, Qb_
 
+    # PAIR_REFUSED_DECIDED: causes restored (once each: the loop guard) and the causes refused beside their drop that
+    # a restoration decided against (kept out of every round after it)
+    pair_restored: set = set()
+    pair_out: list = []
+
+    def pair_decided(gone: Term, later: list, kept: list, rows_) -> Term | None:
+        """``gone``, just dropped by the rival check beside ``later`` (adopted after it), judged once more where a cause
+        of ``later`` was then refused when judged again without it (:data:`PAIR_REFUSED_DECIDED`): beside ``kept`` (the
+        causes that stay, the refused one's model) by the search's tests, then by the rival check in the model with it.
+        Its new term (evidence ``pair_restored_over``: the refused causes, which join ``pair_out``), or None (stays
+        dropped; a refusal at the tests is said in ``rejected``)."""
+        refused = [o for o in later if o.cause not in named_in(kept)]
+        if not refused or gone.cause in pair_restored or len(kept) >= settings.max_findings:
+            return None
+        names = ", ".join(o.cause for o in refused)
+        _, f_, s_ = model(rows_, kept)
+        diag_ = diagnosis(s_, smooth_covs if kept else bl.covariates, rows_)
+        seen.append((s_, diag_))
+        cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
+        judged.append((gone.cause, named_in(kept)))
+        cand = evaluate(by_name[gone.cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
+        if cand.get("reason"):
+            rejected.append(_Refusal({"cause": gone.cause, "reason": f"judged again once {names} (adopted after it) "
+                                      f"was refused without it: {cand['reason']}"},
+                                     beside=named_in(kept), at=len(judged)))
+            return None
+        tm = cand["term"]
+        with_ = kept + [tm]
+        q_, _, s2_ = model(rows_, with_)
+        share = _rival_share(bl, tm, with_, q_, y, rows_, noise_sigma(s2_), settings, bases, scan_trials)
+        tm.evidence.update(share)
+        if not share["kept"]:
+            rejected.append(_Refusal({"cause": gone.cause, "reason": f"judged again once {names} (adopted after it) "
+                                      f"was refused without it: {_demotion_reason(share, tm.covariate, settings)}"},
+                                     beside=named_in(kept), at=len(judged)))
+            return None
+        tm.evidence["pair_restored_over"] = [o.cause for o in refused]
+        pair_restored.add(gone.cause)
+        pair_out.extend(refused)
+        return tm
+
     # 4. rival check: a named cause must explain its covariate's structure
     demoted = []
     dropped = []  # the terms the rival check dropped (their columns re-tested beyond the final model, step 5)
@@ -3819,13 +3865,19 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
                 # dropped cause")
                 put_back, put_back_by, gone_back = judge_later_again(later, terms, rows, tm, put_back, put_back_by)
                 undone = undone or gone_back
+                back = pair_decided(tm, later, terms, rows) if PAIR_REFUSED_DECIDED and not put_back else None
+                if back is not None:  # (the drop referred to a model that no longer stands: it is undone)
+                    terms.append(back)
+                    dropped.pop()  # (tm, the last dropped and demoted: judge_later_again adds to neither)
+                    demoted.pop()
+                    gone_how.pop(tm.cause, None)
                 Qb, folds, st = model(rows, terms)
                 if DROPPED_ROUND_REOPENED and not put_back and len(terms) < settings.max_findings:
                     # the round the dropped cause won is decided again without it, and the rounds after it: the
                     # search resumes beside the causes that stay, every dropped cause kept out (a candidate that
                     # passed that round, or was refused only beside the dropped cause, is judged again); what it
                     # adopts meets this check in turn (the loop runs again)
-                    terms, rows, st, folds, Qb = round_reopened(terms, dropped)
+                    terms, rows, st, folds, Qb = round_reopened(terms, dropped + pair_out)
                 changed = True
                 break
     if (terms or undone) and demoted and not put_back:
@@ -7281,6 +7333,24 @@ REFUSALS_BESIDE_DROPPED_MARKED = True
 #: the rounds spent) is not. Not where outliers were put back by a cause that stays. Session 36 (sel36); off: built,
 #: measured, for the lead (docs/discovery-studies.md, "Session 36: ...").
 RECHOSEN_ROUND_REOPENED = False
+#: Whether a cause the rival check drops beside a cause adopted after it, which is then refused when judged again
+#: without it, is judged once more in the model that stands (True; :func:`discover_baseline`'s ``pair_decided``). The
+#: drop referred to a model holding the later cause (A dropped beside B: B's columns took A's structure, or nested
+#: A's, as lobes turned per set-up nest the probe's fixed lobes); once B is refused without A, neither stands and the
+#: search never judges A again (every dropped cause is kept out of the reopened rounds). Here A, as a candidate of
+#: the search beside the causes that stay (B refused on that very model: the two judged side by side, B first),
+#: passes every test of adoption (4a-f, its form chosen again) and then the rival check in the model with it and
+#: without B, or stays dropped. Restored, it stands against B: B is kept out of every round after (beside A it would
+#: be adopted and drop A again: the loop), and A is restored once per run (the loop guard: dropped a second time, it
+#: stays dropped). Not where outliers were put back. Session 37 (pair37): sel36's third gap, gen_a lobing_per_setup
+#: 1153 (probe_lobing dropped at 0.57 of a smooth in approach_azimuth beside lobing_per_setup, lobing_per_setup
+#: refused without it for its plainer counter, common lobing, at 85 % of its signal): on, ``probe_lobing?``,
+#: ambiguous with lobing_per_setup (the truth; the data cannot tell lobes turned by small angles from fixed lobes
+#: with a wobble). Measured on 1,661 tuning campaigns (gen_a, gen_b, gen_c; effect-free 120): a dropped cause judged
+#: again in 43, restored in 1153 alone, which is the one campaign that moves; no right -> wrong, no workpiece check
+#: moved, no false alarm. Off: built, measured, for the lead (docs/discovery.md, "Session 37: a pair of causes each
+#: refused beside the other").
+PAIR_REFUSED_DECIDED = False
 
 
 class _Refusal(dict):
