@@ -7348,7 +7348,7 @@ RECHOSEN_ROUND_REOPENED = False
 #: ambiguous with lobing_per_setup (the truth; the data cannot tell lobes turned by small angles from fixed lobes
 #: with a wobble). Measured on 1,661 tuning campaigns (gen_a, gen_b, gen_c; effect-free 120): a dropped cause judged
 #: again in 43, restored in 1153 alone, which is the one campaign that moves; no right -> wrong, no workpiece check
-#: moved, no false alarm. Off: built, measured, for the lead (docs/discovery.md, "Session 37: a pair of causes each
+#: moved, no false alarm. Off: built, measured, for the lead (docs/discovery-studies.md, "Session 37: a pair of causes each
 #: refused beside the other").
 PAIR_REFUSED_DECIDED = False
 

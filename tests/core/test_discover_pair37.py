@@ -9,7 +9,7 @@ run. A that fails stays dropped, said in ``rejected``.
 
 Tuning campaigns (gen_a): lobing_per_setup 1153 (probe_lobing restored, named hedged with lobing_per_setup as the
 alternative), knock 1002 and probe_heating 1000 (out of the catalogue, read ``unexplained``: A judged again, fails
-the rival check without B, stays dropped; the reading unchanged). docs/discovery.md, "Session 37: a pair of causes
+the rival check without B, stays dropped; the reading unchanged). docs/discovery-studies.md, "Session 37: a pair of causes
 each refused beside the other".
 """
 
