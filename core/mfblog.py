@@ -294,6 +294,29 @@ def _styli(log, rows) -> tuple[np.ndarray, dict]:
 REQUIRED_COLUMNS = ("feature", "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz")
 
 
+def missing_inputs(log, has_certificate: bool) -> list[str]:
+    """What an MFB log lacks for the identification, each in words naming where it goes (empty: nothing):
+    the chain, the columns, the probe offsets J, the bar's calibration (``has_certificate``: given apart)."""
+    out = []
+    if not str(log.meta.get("kinematic_chain", "")).strip():
+        out.append("its kinematic_chain line (the machine's chain, e.g. [w X Y b Z t])")
+    cols = [c for c in REQUIRED_COLUMNS if not log.has(c)]
+    if cols:
+        out.append(f"the columns {', '.join(cols)} (the touches' features and nominal points and normals in the "
+                   "bar's frame)")
+    if log.has(STYLUS_COLUMN):
+        if not str(log.meta.get(STYLUS_OFFSETS_KEY, "")).strip():
+            out.append(f"a {STYLUS_OFFSETS_KEY} line for its {STYLUS_COLUMN} column (each stylus's probe offsets J, "
+                       "mm: T0=0,0,150; TY1=0,-100,150)")
+    elif not str(log.meta.get(TOOL_OFFSET_KEY, "")).strip():
+        out.append(f"the probe offsets J (a {STYLUS_COLUMN} column with a {STYLUS_OFFSETS_KEY} line, or one "
+                   f"probe's {TOOL_OFFSET_KEY} line, mm)")
+    if not has_certificate:
+        out.append(f"the bar's calibration (--bar-calibration FILE, vmt-bar-calibration/1, or the log's {BAR_E_KEY} "
+                   f"and {BAR_U_KEY} lines)")
+    return out
+
+
 def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB) -> MfbLog:
     """The volumetric identification's inputs from a multi-feature bar's probe log (module doc).
 
@@ -321,18 +344,11 @@ def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB) ->
     if not is_mfb_log(log):
         raise ConfigError(f"{src}: not a multi-feature bar's log (its artefact line is not '{MFB_ARTEFACT}')")
     chain = str(log.meta.get("kinematic_chain", "")).strip()
-    if not chain:
-        raise ConfigError(f"{src}: an MFB log needs its kinematic_chain line (the machine's chain, e.g. "
-                          "[w X Y b Z t]): the identification is of that chain")
-    ch = parse_chain(chain)
-    missing = [c for c in REQUIRED_COLUMNS if not log.has(c)]
-    if missing:
-        raise ConfigError(f"{src}: an MFB log needs the columns {', '.join(REQUIRED_COLUMNS)}; it has no "
-                          f"{', '.join(missing)}")
     cert = certificate if certificate is not None else certificate_of_log(log)
-    if cert is None:
-        raise ConfigError(f"{src}: no bar calibration: give the bar's certificate (--bar-calibration FILE, "
-                          f"vmt-bar-calibration/1) or the log's {BAR_E_KEY} and {BAR_U_KEY} lines")
+    lacks = missing_inputs(log, cert is not None)
+    if lacks:
+        raise ConfigError(f"{src}: this multi-feature bar's log cannot be identified: it lacks " + "; ".join(lacks))
+    ch = parse_chain(chain)
     t = from_log(log)
     rows = np.asarray(t.row, int)
     r_mm = np.asarray(log.col("stylus_r_mm"), float)[rows]
