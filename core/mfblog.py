@@ -62,6 +62,8 @@ MEASUREMENT_COLUMN = "measurement"
 #: height sensors, so 12 nodes along X leave one EZX combination seen by curvature alone (``scenarios.mfb``'s
 #: 3-axis plan: 9 nodes over its 12 holes).
 MAX_NODES = 9
+#: A fitted bar pose's rotation entries within this of 0 or +-1 are taken as exactly 0 or +-1 (:func:`bar_pose_W`).
+SNAP = 1.0e-12
 #: Within a set-up, every stylus's touches must give one bar pose (:func:`bar_pose_W`) to this, m: the nominal
 #: columns are a perfect machine's, so they agree to their printing.
 POSE_TOL_M = 1.0e-6
@@ -170,6 +172,11 @@ def bar_pose_W(c_A: np.ndarray, p_W: np.ndarray) -> np.ndarray:
         raise ConfigError("the touches' nominal points lie on a line: no bar pose")
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
     R = Vt.T @ D @ U.T
+    # a designed pose's exact entries (0, +-1: a bar along an axis, or a tilt in one plane) kept exact: the fit
+    # leaves them 1e-16 off, and core.volumetric then keeps a row a nominal pose makes exactly zero (the roll of
+    # the mistake-proofing holes: core.baseline.volumetric leaves such rows out only when they are zero)
+    R[np.abs(R) < SNAP] = 0.0
+    R[np.abs(np.abs(R) - 1.0) < SNAP] = np.sign(R[np.abs(np.abs(R) - 1.0) < SNAP])
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = pw - R @ ca
