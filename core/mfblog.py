@@ -146,7 +146,8 @@ def certificate_of_log(log) -> BarCertificate | None:
 
 def certificate_lines(E_m, u_m) -> dict:
     """The two metadata lines of a certificate (:func:`certificate_of_log` reads them)."""
-    return {BAR_E_KEY: format_numbers(np.asarray(E_m, float) / UM), BAR_U_KEY: format_numbers(np.asarray(u_m, float) / UM)}
+    return {BAR_E_KEY: format_numbers(np.asarray(E_m, float) / UM),
+            BAR_U_KEY: format_numbers(np.asarray(u_m, float) / UM)}
 
 
 def probe_sigma_of_log(log) -> float | None:
@@ -189,11 +190,11 @@ def bar_pose_W(c_A: np.ndarray, p_W: np.ndarray) -> np.ndarray:
 
 def derived_nodes(meas, chain: str, rotary_points_R_m=None) -> dict:
     """The error tables' nodes where the log's line gives none: per linear axis, the axis positions (reading +
-    J) of the nominal points of interest (the bar's design, in its nominal pose) of the bars that lie along that axis in R (within 1 deg), from the lowest to
-    the highest, evenly spaced, as many as the most holes one such measurement probed, at most
-    :data:`MAX_NODES` (``scenarios.mfb``'s plans: 9 along X over 12 holes, one per hole along Y and Z). Raises
+    J) of the nominal points of interest (the bar's design in its nominal pose) of the bars that lie along that
+    axis in R (within 1 deg), from the lowest to the highest, evenly spaced, as many as the most holes one such
+    measurement probed, at most :data:`MAX_NODES` (``scenarios.mfb``'s plans: 9 along X over 12 holes, one per
+    hole along Y and Z; tests/scenarios/test_mfb_log_route.py checks both plans' own nodes come out). Raises
     ConfigError naming an axis no bar lies along."""
-    from .chain import parse_chain
     from .kinematics import ChainGeometry
     from .volumetric import _nominal_readings
 
@@ -213,7 +214,6 @@ def derived_nodes(meas, chain: str, rotary_points_R_m=None) -> dict:
             raise ConfigError(f"no bar lies along {a}: the error tables of {a} have no nodes (give them on an "
                               f"{NODES_KEY} line)")
         out[a] = np.linspace(lo, hi, min(most, MAX_NODES))
-    parse_chain(chain)
     return out
 
 
@@ -368,6 +368,9 @@ def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB) ->
     setup = np.asarray(t.setup_ids, object)[t.setup]
     if log.has(MEASUREMENT_COLUMN):
         mname = np.array([str(s).strip() for s in log.col(MEASUREMENT_COLUMN)[rows]], object)
+        if np.any(mname == ""):
+            r = int(rows[np.flatnonzero(mname == "")[0]])
+            raise ConfigError(f"{src}: data row {r + 1} has no measurement (its {MEASUREMENT_COLUMN} cell is empty)")
         keys = list(dict.fromkeys(mname))
         groups = [np.flatnonzero(mname == k) for k in keys]
         for k, g in zip(keys, groups):
