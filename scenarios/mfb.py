@@ -3178,13 +3178,15 @@ IDENTIFY_LOG_FORMAT = "vmt-identify-mfb/1"
 
 
 def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generator | None = None,
-                 u_place=U_PLACE, source: str = "", machine: str | None = None, progress=None) -> dict:
+                 u_place=U_PLACE, source: str = "", machine: str | None = None, progress=None,
+                 declared_ripple: dict | None = None) -> dict:
     """The 21 errors of a multi-feature bar's probe log (:func:`core.mfblog.read_mfb_log`'s ``ml``): what
     :func:`run` does after its simulation, with the log's measurements, nodes and certificate and no truth.
 
     ``sigma_m`` the probe's repeatability (k = 1), m; ``u_place`` the placements' tolerance (:data:`U_PLACE`:
     the bar set by hand); ``mc_runs`` Monte Carlo runs of the U95 (0: the linear propagation), drawn from
-    ``rng``. The same calls in the same order as :func:`run` (the identification, the residuals' noise model,
+    ``rng``; ``declared_ripple`` as :func:`run`'s (a type B term in the U95 and the covariance). The same calls
+    in the same order as :func:`run` (the identification, the residuals' noise model,
     lack of fit, model-error share behind :data:`MFB_MODEL_ERROR_SHARE` and its gate, the U95, the covariance,
     the estimate, between the nodes): on :func:`run`'s own campaign written as a log (:func:`campaign_log`) the
     same numbers (tests/scenarios/test_mfb_log_route.py). Returns the ``vmt-identify-mfb/1`` document.
@@ -3194,6 +3196,7 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
 
     meas = list(ml.meas)
     rp = dict(ml.rotary_points_R_m)
+    declared = _check_declared_ripple(declared_ripple)
     rng = np.random.default_rng(0) if rng is None else rng
     res_g = vol.identify_volumetric(meas, ml.chain, ml.nodes, rp)
     if progress is not None:
@@ -3201,6 +3204,7 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
     L_iso = vol.iso_map(res_g.design)
     res = vol.iso_view(res_g)
     cal_map = mfb.calibration_map()
+    rip_g = [vol.ripple_columns(res_g, meas, ml.chain, s, a, p, rp) for s, (a, p) in declared.items()] or None
     u_cal = np.asarray(ml.certificate.u_m, float)
     noisy = sigma_m > 0
     up = np.asarray(u_place, float)
@@ -3214,8 +3218,9 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
     gate = share is not None and opens
     me_g = share.columns if gate and share.entered else None
     unc = (vol.uncertainty(res, meas, sigma_m, u_cal, runs=mc_runs, rng=rng, u_place=up if noisy else None,
-                           cal_map=cal_map, model_error=None if me_g is None else L_iso @ me_g)
-           if mc_runs or noisy or np.any(u_cal > 0) else None)
+                           cal_map=cal_map, ripples=None if rip_g is None else [L_iso @ c for c in rip_g],
+                           model_error=None if me_g is None else L_iso @ me_g)
+           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
     if progress is not None:
         progress(2, 3)
     slopes = vol.end_point_slopes(res_g.design, res_g.theta)
@@ -3234,14 +3239,20 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
            if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
            "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6, "errors": errors,
            **({"not_compensated": nc} if (nc := rotary_not_compensated(res.chain)) else {})}
-    cov_g = vol.covariance(res_g, meas, sigma_m, u_cal, up if noisy else None, cal_map=cal_map, model_error=me_g)
+    cov_g = vol.covariance(res_g, meas, sigma_m, u_cal, up if noisy else None, cal_map=cal_map, ripples=rip_g,
+                           model_error=me_g)
     doc["estimate"] = vol.estimate(res_g, cov_g)
     doc["estimate"]["identified_on"] = identified_on(
         machine, ml.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in meas}), None,
         ml.t_range_s if np.all(np.isfinite(ml.t_range_s)) else None)
+    if declared:
+        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
+        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
+                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
     if unc is not None:
         doc["u95_inputs"] = [k for k, on in (("probing noise", noisy), ("bar calibration", bool(np.any(u_cal > 0))),
                                              ("placement", noisy and bool(np.any(up > 0))),
+                                             ("declared ripple", bool(declared)),
                                              ("model error (residuals)", me_g is not None)) if on]
         doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
                              else "linear propagation (JCGM 100 eq. 13), k = 2")

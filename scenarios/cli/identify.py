@@ -66,7 +66,9 @@ def _run(args, bar) -> int:
 
     if args.tool_offset_mm is not None:
         parse_tool_offset(args.tool_offset_mm)     # a bad value refused before any work (the commands' one parser)
-    sub = _declared(args)
+    from scenarios.cli.options import declared_ripples
+
+    declared_ripples(args)  # their form refused before any work; the tables they name once the log's kind is known
     steps = 4 if args.mc else 3
     bar(0, steps)
     log = read_probe(args.log, "identify", bar=bar)
@@ -77,6 +79,7 @@ def _run(args, bar) -> int:
     if args.bar_calibration is not None:
         raise ConfigError(f"--bar-calibration: {args.log} is not a multi-feature bar's log (its artefact line is "
                           f"not 'mfb'): the option is for MFB logs")
+    sub = _declared(args)
     # J: the log's tool_offset_mm line (the record of what was done), else --tool-offset-mm, else unknown; an
     # option that says another J than the log's is refused here, before any work and any file written
     J_mm, J_from = tool_offset_of_log(log, args.tool_offset_mm)
@@ -252,15 +255,16 @@ def _run_mfb(args, log, bar) -> int:
     from core.mfblog import STYLUS_COLUMN, TOOL_OFFSET_KEY, read_mfb_log
 
     src = args.log
-    for opt, v in (("--grid-mm", args.grid_mm), ("--delta-l-um", args.delta_l_um),
-                   ("--declared-ripple-um-mm", args.declared_ripple),
-                   ("--declared-ripple-urad-mm", args.declared_ripple_urad)):
+    for opt, v in (("--grid-mm", args.grid_mm), ("--delta-l-um", args.delta_l_um)):
         if v is not None:
             why = {"--grid-mm": "its error tables' nodes are its bars' points of interest (its error_table_nodes_mm "
                                 "line, else derived from the bars)",
-                   "--delta-l-um": "the bar's calibration gives the scale"}.get(opt, "a declared ripple is not read "
-                                                                                    "for MFB logs yet")
+                   "--delta-l-um": "the bar's calibration gives the scale"}[opt]
             raise ConfigError(f"{opt}: {src} is a multi-feature bar's log: {why}")
+    from scenarios.cli.options import declared_ripples
+    from scenarios.mfb import _check_declared_ripple
+
+    declared = _check_declared_ripple(declared_ripples(args))   # (vmt scenario mfb-*'s: any motion table)
     if args.tool_offset_mm is not None:
         if log.has(STYLUS_COLUMN):
             raise ConfigError(f"--tool-offset-mm: {src} names each row's stylus (its {STYLUS_COLUMN} column and "
@@ -286,7 +290,7 @@ def _run_mfb(args, log, bar) -> int:
 
     with about_file(src):   # 'rank deficient by 2 ...': of this log's plan
         doc = identify_log(ml, sigma_m=sigma, mc_runs=args.mc, rng=np.random.default_rng(args.seed or 0),
-                           source=src, machine=machine, progress=lambda k, n: bar(1 + k, 4))
+                           source=src, machine=machine, progress=lambda k, n: bar(1 + k, 4), declared_ripple=declared)
     doc["input_warnings"] = warned
     from core.atomic import write_json_atomic
 

@@ -82,6 +82,25 @@ def test_identify_on_the_log_gives_the_scenarios_errors_and_u95(run3, tmp_path, 
     assert doc["rms_residual_um"] == pytest.approx(r.doc["rms_residual_um"], abs=TOL_UM)
 
 
+def test_identify_with_a_declared_ripple_gives_the_scenarios_u95(run3, tmp_path):
+    """--declared-ripple-um-mm on an MFB log: the type B term of vmt scenario mfb-3axis --declared-ripple-um-mm (the
+    same U95 to TOL_UM; the identified values do not move)."""
+    from scenarios.mfb import run
+
+    r, path = run3
+    ripple = {"EXX": (0.38e-6, 0.010), "EYY": (0.2e-6, 0.010)}
+    rr = run("mfb-3axis", seed=1, mc_runs=0, declared_ripple=ripple)
+    out = tmp_path / "i.json"
+    assert main(["identify", str(path), "--json", str(out), "--declared-ripple-um-mm", "EXX=0.38:10,EYY=0.2:10"]) == 0
+    doc = json.loads(out.read_text())
+    assert "declared ripple" in doc["u95_inputs"] and set(doc["declared_ripple"]) == {"EXX", "EYY"}
+    for s, e in rr.doc["errors"].items():
+        np.testing.assert_allclose(doc["errors"][s]["u95"], e["u95"], rtol=0, atol=TOL_UM, err_msg=s)
+        np.testing.assert_allclose(doc["errors"][s]["identified"], r.doc["errors"][s]["identified"], rtol=0,
+                                   atol=TOL_UM, err_msg=s)
+    assert max(rr.doc["errors"]["EXX"]["u95"]) > max(r.doc["errors"]["EXX"]["u95"]) + 0.1   # the term is there
+
+
 def test_the_5axis_plan_round_trip(tmp_path):
     """mfb-5axis: rotary set-ups (A, C), the rotary axes' points on their line; the nodes derived from the bars
     when the log has no nodes line are the plan's."""
