@@ -35,8 +35,10 @@ def register(sub) -> None:
         p, "a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's pitch error: "
            "EXX=0.38:10,EYY=0.2:10; amplitude bound um, period mm; tables EXX, EYX, EXY, EYY): a sinusoid at an "
            "unknown phase in the U95 (the residuals do not show its value at the datum's nodes). Omitted: the U95 "
-           "holds only the model error the residuals show",
-        "the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, e.g. ECY=0.15:10")
+           "holds only the model error the residuals show. An MFB log: any translation table of X, Y, Z (as vmt "
+           "scenario mfb-*)",
+        "the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, e.g. ECY=0.15:10; an "
+        "MFB log: any angular table of X, Y, Z")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
