@@ -273,7 +273,7 @@ def _run_mfb(args, log, bar) -> int:
                               "stylus_offsets_mm line): the option is for a log of one probe")
         from dataclasses import replace
 
-        from scenarios.cli.options import parse_tool_offset, tool_offset_of_log
+        from scenarios.cli.options import tool_offset_of_log
 
         J_mm, _ = tool_offset_of_log(log, args.tool_offset_mm)
         log = replace(log, meta={**log.meta, TOOL_OFFSET_KEY: ",".join(repr(float(v)) for v in J_mm)})
