@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -> dict:
+def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None, bar_calibration=None) -> dict:
     """Read, discover, check the result, write the report folder, then the JSON; return the report dict.
 
     Nothing is written unless the result is complete: the JSON is checked
@@ -18,18 +18,32 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None) -
     the report folder comes next and the JSON last. ``null`` is allowed only
     where the contract says "not available": the per-target workpiece
     figures, the findings' fitted magnitudes and their U95.
+
+    A multi-feature bar's log (its ``artefact`` line ``mfb``) is discovered on the volumetric baseline
+    (:func:`_discover_mfb_log`), never the planar one; ``bar_calibration`` (a ``vmt-bar-calibration/1`` path) is
+    its certificate instead of the log's own lines, refused for any other log.
     """
     from core.atomic import json_safe, json_text, write_text_atomic
 
     warned: list[str] = []   # the reader's warnings (said on stderr by scenarios.cli.reading), for the JSON
     if _is_positioning_log(log_path):
+        if bar_calibration is not None:
+            from core.exceptions import ConfigError
+
+            raise ConfigError(f"--bar-calibration: {log_path} is a positioning test, not a multi-feature bar's log")
         d = _discover_positioning(log_path, report, grid_mm, warned=warned)
     else:
-        d = _discover_probe_log(log_path, grid_mm, progress, warned=warned)
+        d = _discover_probe_log(log_path, grid_mm, progress, warned=warned, bar_calibration=bar_calibration)
     rep = dict(d.to_report())
     for k in ("workpiece", "findings"):
         if k in rep:
             rep[k] = json_safe(rep[k])
+    if getattr(d.baseline, "kind", None) == "volumetric":
+        # the MFB plan has no redundancy to hold points out (core.baseline.volumetric: Mallows' Cp), so there is
+        # no held-out noise to compare: the cv_gap's figures are not available (null), not a failed result
+        nz = dict(rep["noise_um"])
+        nz["cv_gap"] = json_safe(nz.get("cv_gap"))
+        rep["noise_um"] = nz
     fc = workpiece_form_change(d)
     if fc is not None:
         rep["workpiece_form_change"] = fc
@@ -214,11 +228,14 @@ def lobes_not_determined(d) -> dict | None:
             "checked_lobe_orders": list(LOBE_ORDERS), "what": what}
 
 
-def _discover_probe_log(log_path, grid_mm, progress, warned: list | None = None):
+def _discover_probe_log(log_path, grid_mm, progress, warned: list | None = None, bar_calibration=None):
     """The planar self-calibration baseline of a probe-log/1 campaign, then the search
-    (the reader's warnings said on stderr and added to ``warned``)."""
+    (the reader's warnings said on stderr and added to ``warned``); a multi-feature bar's log: the volumetric
+    baseline (:func:`_discover_mfb_log`)."""
     from core.baseline import extra_columns
     from core.discover import discover
+    from core.exceptions import ConfigError
+    from core.mfblog import is_mfb_log
     from core.scope import check_planar_scope
     from core.touches import from_log
 
@@ -227,6 +244,11 @@ def _discover_probe_log(log_path, grid_mm, progress, warned: list | None = None)
     log = read_probe(log_path, "discover", bar=progress)
     if warned is not None:
         warned.extend(log.warnings)
+    if is_mfb_log(log):
+        return _discover_mfb_log(log, grid_mm, bar_calibration)
+    if bar_calibration is not None:
+        raise ConfigError(f"--bar-calibration: {log_path} is not a multi-feature bar's log (its artefact line is "
+                          "not 'mfb'): the option is for MFB logs")
     check_planar_scope(log, "discover")
     t = from_log(log)
     chain, extra = log.meta.get("kinematic_chain"), extra_columns(log, t.row)
@@ -235,6 +257,47 @@ def _discover_probe_log(log_path, grid_mm, progress, warned: list | None = None)
     held = [t]
     del t
     return discover(held.pop(), grid_step_mm=grid_mm, chain=chain, progress=progress, extra=extra)
+
+
+def mfb_log_baseline(log, bar_calibration=None):
+    """(volumetric baseline, :class:`core.mfblog.MfbLog`) of a multi-feature bar's probe log ``log``: its
+    measurements (:func:`core.mfblog.read_mfb_log`, the certificate ``bar_calibration`` (a path) or the log's own
+    lines), each at the mean time of its touches, and the noise model a metrologist declares with them: the
+    probe's repeatability (the log's probe_repeatability_k2_um line) and the bar's certificate through its rods
+    (:func:`core.mfb.calibration_map`), as ``scenarios.hidden.mfb_declared_noise`` declares them for the
+    simulated campaigns; without a repeatability line, the touch noise alone (said in the baseline's conventions)."""
+    from core.baseline import volumetric
+    from core.mfb import calibration_map
+    from core.mfblog import BarCertificate, read_mfb_log
+
+    cert = None
+    if bar_calibration is not None:
+        from scenarios.mfb import read_bar_calibration
+
+        cal, _ = read_bar_calibration(bar_calibration)
+        cert = BarCertificate(cal.E_m, cal.u_m, f"--bar-calibration {bar_calibration}")
+    ml = read_mfb_log(log, cert)
+    declared = ({"sigma_probe_m": ml.sigma_probe_m, "u_cal_m": ml.certificate.u_m, "cal_map": calibration_map()}
+                if ml.sigma_probe_m else {})
+    from scenarios.cli.guard import about_file
+
+    with about_file(log.source):
+        bl = volumetric(ml.meas, ml.chain, ml.nodes, ml.rotary_points_R_m, ml.times_s, **declared)
+    return bl, ml
+
+
+def _discover_mfb_log(log, grid_mm, bar_calibration=None):
+    """Discovery on a multi-feature bar's log: the volumetric baseline (:func:`mfb_log_baseline`), then the search
+    (``core.discover.discover_baseline``, as the MFB studies run it: ``scenarios.hidden.mfb_outcome``)."""
+    from core.discover import discover_baseline
+    from core.exceptions import ConfigError
+
+    if grid_mm is not None:
+        raise ConfigError(f"--grid-mm: {log.source} is a multi-feature bar's log: its error tables' nodes are its "
+                          "bars' points of interest (its error_table_nodes_mm line, else derived from the bars)")
+    bl, _ = mfb_log_baseline(log, bar_calibration)
+    del log
+    return discover_baseline(bl)
 
 
 def _is_positioning_log(path) -> bool:

@@ -1187,6 +1187,11 @@ class ScenarioResult:
     #: the truth machine's probe offset J (reading = axis position - J), m: where the per-axis files are exact
     #: (:func:`describe_comp_line`)
     J_m: tuple = field(default=None, compare=False)
+    #: the simulated campaign as a probe log would hold it (:func:`campaign_log` writes it): each measurement's
+    #: simulated log (``sim.campaign.simulate_measurements``) and what the identification was given beside the
+    #: touches (``E_cal_m``, ``u_cal_m`` (12, 3) the bar's calibration at its points of interest, ``dJ_m``
+    #: {stylus: (3,)} the styli's calibration errors added to their readings, ``rotary_points_R_m``, ``sigma_m``)
+    campaign: dict = field(default=None, compare=False, repr=False)
 
     def write_comp(self, directory, line_m=None) -> list:
         """Write the LinuxCNC per-axis compensation files and the vmt JSON tables.
@@ -1827,8 +1832,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["collision_check"] = collision
     if progress is not None:
         progress(steps, steps)
+    campaign = {"logs": tuple(logs), "E_cal_m": np.asarray(E_cal_O, float), "u_cal_m": np.asarray(u_cal, float),
+                "dJ_m": dJ, "rotary_points_R_m": dict(cfg.rotary_points_R_m), "sigma_m": float(probe.sigma_m)}
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas,
-                          axis_strokes_m(cfg), tuple(float(v) for v in cfg.J_m))
+                          axis_strokes_m(cfg), tuple(float(v) for v in cfg.J_m), campaign)
 
 
 #: The residuals' model-error share in the U95 (:func:`core.volumetric.model_error_share`, review29b F2b):
@@ -3117,3 +3124,154 @@ def study_table_markdown(rep: dict) -> str:
                   f"{h['first']:.2f} / {h['second']:.2f}"])
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- the campaign as a probe log
+def campaign_log(r: ScenarioResult, meta: dict | None = None):
+    """The simulated campaign of ``r`` (:func:`run`) as one ``probe-log/1`` log (``artefact: mfb``) that
+    :func:`core.mfblog.read_mfb_log` reads back into the same measurements: every measurement's touches in
+    the order simulated, ``setup`` the measurement's set-up (one bar pose), ``measurement`` its name,
+    ``stylus`` its stylus; lines: the styli's offsets, the plan's error-table nodes, the rotary axes' points,
+    the bar's certificate as the identification was given it (declared or ``bar_calibration``) and ``meta``.
+    Each stylus's calibration error (``u_stylus_um``, ``stylus_dJ_m``) is in its readings, as the
+    identification read them. (``vmt simulate mfb-3axis|mfb-5axis``.)"""
+    from core import mfblog
+    from core.probelog import make_log
+
+    c = r.campaign
+    if not c or not c.get("logs"):
+        from core.exceptions import ConfigError
+
+        raise ConfigError("this MFB run kept no campaign to write")
+    cols: dict = {}
+    order = None
+    for ms, log in zip(r.plan.measurements, c["logs"]):
+        n = log.n
+        own = dict(log.columns)
+        dJ = np.asarray(c["dJ_m"].get(ms.stylus, np.zeros(3)), float)
+        for j, a in enumerate("XYZ"):
+            if dJ[j]:
+                own[f"{a}_mm"] = own[f"{a}_mm"] + dJ[j] / MM
+        own["setup"] = np.full(n, ms.setup_key, object)
+        own[mfblog.MEASUREMENT_COLUMN] = np.full(n, ms.name, object)
+        own[mfblog.STYLUS_COLUMN] = np.full(n, ms.stylus, object)
+        if order is None:
+            order = list(own)
+        for k in order:
+            cols.setdefault(k, []).append(own[k])
+    cols = {k: np.concatenate(v) for k, v in cols.items()}
+    m = dict(c["logs"][0].meta)
+    m.pop("format", None)
+    styli = {ms.stylus: np.asarray(ms.J_m, float) / MM for ms in r.plan.measurements}
+    m[mfblog.STYLUS_OFFSETS_KEY] = mfblog.format_named_vectors(styli)
+    m[mfblog.NODES_KEY] = mfblog.format_named_vectors({a: np.asarray(v, float) / MM for a, v in r.plan.nodes.items()})
+    if c["rotary_points_R_m"]:
+        m[mfblog.ROTARY_POINTS_KEY] = mfblog.format_named_vectors(
+            {a: np.asarray(v, float) / MM for a, v in c["rotary_points_R_m"].items()})
+    m.update(mfblog.certificate_lines(c["E_cal_m"], c["u_cal_m"]))
+    m.update(meta or {})
+    return make_log(cols, m)
+
+
+#: Format of ``vmt identify --json`` on a multi-feature bar's log (:func:`identify_log`).
+IDENTIFY_LOG_FORMAT = "vmt-identify-mfb/1"
+
+
+def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generator | None = None,
+                 u_place=U_PLACE, source: str = "", machine: str | None = None, progress=None,
+                 declared_ripple: dict | None = None) -> dict:
+    """The 21 errors of a multi-feature bar's probe log (:func:`core.mfblog.read_mfb_log`'s ``ml``): what
+    :func:`run` does after its simulation, with the log's measurements, nodes and certificate and no truth.
+
+    ``sigma_m`` the probe's repeatability (k = 1), m; ``u_place`` the placements' tolerance (:data:`U_PLACE`:
+    the bar set by hand); ``mc_runs`` Monte Carlo runs of the U95 (0: the linear propagation), drawn from
+    ``rng``; ``declared_ripple`` as :func:`run`'s (a type B term in the U95 and the covariance). The same calls
+    in the same order as :func:`run` (the identification, the residuals' noise model,
+    lack of fit, model-error share behind :data:`MFB_MODEL_ERROR_SHARE` and its gate, the U95, the covariance,
+    the estimate, between the nodes): on :func:`run`'s own campaign written as a log (:func:`campaign_log`) the
+    same numbers (tests/scenarios/test_mfb_log_route.py). Returns the ``vmt-identify-mfb/1`` document.
+    """
+    from core import iso, mfb, volumetric as vol
+    from core.state import identified_on
+
+    meas = list(ml.meas)
+    rp = dict(ml.rotary_points_R_m)
+    declared = _check_declared_ripple(declared_ripple)
+    rng = np.random.default_rng(0) if rng is None else rng
+    res_g = vol.identify_volumetric(meas, ml.chain, ml.nodes, rp)
+    if progress is not None:
+        progress(1, 3)
+    L_iso = vol.iso_map(res_g.design)
+    res = vol.iso_view(res_g)
+    cal_map = mfb.calibration_map()
+    rip_g = [vol.ripple_columns(res_g, meas, ml.chain, s, a, p, rp) for s, (a, p) in declared.items()] or None
+    u_cal = np.asarray(ml.certificate.u_m, float)
+    noisy = sigma_m > 0
+    up = np.asarray(u_place, float)
+    u_place_fit = up if noisy else None
+    noise = vol.residual_noise(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map)
+    lof = vol.lack_of_fit(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, noise=noise)
+    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
+    share = (vol.model_error_share(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, exact_p=True,
+                                   all_exact=opens, noise=noise)
+             if MFB_MODEL_ERROR_SHARE and noisy else None)
+    gate = share is not None and opens
+    me_g = share.columns if gate and share.entered else None
+    unc = (vol.uncertainty(res, meas, sigma_m, u_cal, runs=mc_runs, rng=rng, u_place=up if noisy else None,
+                           cal_map=cal_map, ripples=None if rip_g is None else [L_iso @ c for c in rip_g],
+                           model_error=None if me_g is None else L_iso @ me_g)
+           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
+    if progress is not None:
+        progress(2, 3)
+    slopes = vol.end_point_slopes(res_g.design, res_g.theta)
+    errors = vol.report(res, unc, None)
+    for s, e in errors.items():
+        if iso.symbol(s).kind == iso.Kind.STRAIGHTNESS:
+            e["reference"] = "end-point straight line"
+            e["end_point_slope_urad"] = slopes[s] * 1e6
+    doc = {"format": IDENTIFY_LOG_FORMAT, "log": str(source), "artefact": "mfb", "chain": ml.chain,
+           "noise_um": sigma_m * 1e6, "noise_note": "probing noise: a standard deviation (k = 1) along the approach",
+           "setups": len(ml.setups), "measurements": len(meas), "touches": ml.touches,
+           "styli_mm": {k: (np.asarray(v, float) / MM).tolist() for k, v in ml.styli.items()},
+           "nodes_from": ml.nodes_from, "bar_calibration": ml.certificate.source,
+           "model": "first order (eqs 8-12) + exact Gauss-Newton"
+                    + (" (the points fitted again from the touches at each step)" if res.extraction else "")
+           if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
+           "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6, "errors": errors,
+           **({"not_compensated": nc} if (nc := rotary_not_compensated(res.chain)) else {})}
+    cov_g = vol.covariance(res_g, meas, sigma_m, u_cal, up if noisy else None, cal_map=cal_map, ripples=rip_g,
+                           model_error=me_g)
+    doc["estimate"] = vol.estimate(res_g, cov_g)
+    doc["estimate"]["identified_on"] = identified_on(
+        machine, ml.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in meas}), None,
+        ml.t_range_s if np.all(np.isfinite(ml.t_range_s)) else None)
+    if declared:
+        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
+        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
+                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
+    if unc is not None:
+        doc["u95_inputs"] = [k for k, on in (("probing noise", noisy), ("bar calibration", bool(np.any(u_cal > 0))),
+                                             ("placement", noisy and bool(np.any(up > 0))),
+                                             ("declared ripple", bool(declared)),
+                                             ("model error (residuals)", me_g is not None)) if on]
+        doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
+                             else "linear propagation (JCGM 100 eq. 13), k = 2")
+    if share is not None:
+        doc["model_error"] = share.as_dict()
+        if not gate:
+            doc["model_error"]["held"] = doc["model_error"].pop("entered")
+            doc["model_error"]["entered"] = []
+            doc["model_error"].pop("u")
+    if lof is not None:
+        doc["lack_of_fit"] = lof.as_dict()
+        if not lof.fits:
+            doc["model_fit_note"] = lack_of_fit_note(lof, ml.nodes)
+    bn = (vol.between_nodes_fit(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, noise=noise)
+          if MFB_BETWEEN_NODES and noisy else None)
+    if bn is not None:
+        doc["between_nodes"] = bn.as_dict()
+        if not bn.fits:
+            doc["between_nodes_note"] = between_nodes_note(bn)
+    if progress is not None:
+        progress(3, 3)
+    return doc

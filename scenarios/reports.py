@@ -137,7 +137,9 @@ def _discovery_sections(d, t, rep: dict, rec=None) -> list:
                     ["in-sample residuals", nz["in_sample"]["sigma_um"], f"{nz['in_sample']['dof']} dof"],
                     ["held-out residuals", nz["cv_gap"]["sigma_cv_um"],
                      f"ratio {nz['cv_gap']['ratio']:.3g} (noise: {nz['cv_gap']['expected_ratio']:.3g}), "
-                     f"p = {nz['cv_gap']['p_value']:.3g}"]])]),
+                     f"p = {nz['cv_gap']['p_value']:.3g}" if nz["cv_gap"]["ratio"] is not None else
+                     "not available: no point can be held out (a multi-feature bar's plan has no redundancy; the "
+                     "held-out error is Mallows' Cp)"]])]),
     ]
     panels = []
     for dg in d.diagnosis:

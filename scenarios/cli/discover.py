@@ -13,9 +13,10 @@ from scenarios.discover_run import (_discover_positioning, _discover_probe_log, 
 def register(sub) -> None:
     p = sub.add_parser("discover", help="find what the baseline model misses, where, name the cause, extend, "
                                         "measure the gain")
-    p.add_argument("log", help="probe-log/1 campaign (the same targets at two or more C angles), or a "
-                               "positioning-log/1 ISO 230-2 test (baseline: the standard's mean per target "
-                               "and direction)")
+    p.add_argument("log", help="probe-log/1 campaign (the same targets at two or more C angles), a "
+                               "multi-feature bar's placements (its artefact line 'mfb': the volumetric baseline, "
+                               "the 21 errors of X, Y, Z; docs/formats.md), or a positioning-log/1 ISO 230-2 test "
+                               "(baseline: the standard's mean per target and direction)")
     p.add_argument("--json", dest="json_out", required=True, help="discovery report (JSON) to write")
     p.add_argument("--report", help="folder for a readable report (index.html, PNG figures, rerun .rrd)")
     from scenarios.cli.options import option
@@ -24,6 +25,9 @@ def register(sub) -> None:
     option(p, "--grid-mm", dest="grid_mm", default=None, metavar="STEP", old=("--grid-step-mm",),
            help="error-map grid of the baseline, mm: STEP only, discover places the nodes (default: the step "
                 "chosen by BIC among 22-80 mm)")
+    from scenarios.cli.options import add_bar_calibration_arg
+
+    add_bar_calibration_arg(p)
     p.set_defaults(func=run)
 
 
@@ -50,7 +54,20 @@ def _said(cause: str, k: str, v, u, side, kind: str) -> str:
 
 #: baseline kind -> (what its estimand is called, the noun of its rows) in the summary
 ESTIMAND_WORDS = {"planar": ("workpiece", "targets"),
-                  "positioning": ("deviation", "means per target and direction")}
+                  "positioning": ("deviation", "means per target and direction"),
+                  "volumetric": ("tables", "node values")}
+
+
+#: baseline kind -> the noun of the baseline's rows in the summary (default: touches)
+ROW_WORDS = {"positioning": "readings", "volumetric": "point coordinates"}
+
+
+def report_kind(rep: dict, positioning: bool) -> str:
+    """The baseline kind of a discovery report: ``positioning`` (an ISO 230-2 test), ``volumetric`` (a
+    multi-feature bar's log: its model's name) or ``planar``."""
+    if positioning:
+        return "positioning"
+    return "volumetric" if str((rep.get("baseline") or {}).get("model", "")).startswith("volumetric") else "planar"
 
 
 def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
@@ -75,11 +92,11 @@ def summary_lines(rep: dict, kind: str = "planar") -> list[str]:
     # (a positioning run's held-out/in-sample ratio is not printed: leaving a cycle out of means per target and
     # direction scales each residual by n/(n-1), so on balanced cycles the ratio is (n/(n-1))^2 whatever the data,
     # 1.56 of 1.56 at p = 1 on every run (review31c); the JSON keeps noise_um.cv_gap)
-    gap = ("" if kind == "positioning" else
+    gap = ("" if kind != "planar" else
            f"; held-out/in-sample ratio {nz['cv_gap']['ratio']:.2f} (pure noise: {nz['cv_gap']['expected_ratio']:.2f}, "
            f"p = {nz['cv_gap']['p_value']:.2g})")
     out = [f"baseline   {b['model']}: rms {b['rms_um']:.3f} um, cv rms {rep['baseline_cv_rms_um']:.3f} um "
-           f"({b['n']} {'readings' if kind == 'positioning' else 'touches'}, {b['n_params']} parameters)",
+           f"({b['n']} {ROW_WORDS.get(kind, 'touches')}, {b['n_params']} parameters)",
            f"noise      {nz['sigma_um']:.3f} um (from {nz['method']}{beyond}){gap}"]
     left = next((c for c in rep.get("conventions") or () if c.endswith(LEFT_OUT_NOTE)), None)
     if left is not None:  # said in the summary, not only in the JSON (review30c)
@@ -181,8 +198,9 @@ def run(args) -> int:
         args.grid_mm = step
 
     with progress_line("discover") as bar:
-        rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar)
-    for line in summary_lines(rep, "positioning" if _is_positioning_log(args.log) else "planar"):
+        rep = run_discover(args.log, args.json_out, args.report, args.grid_mm, progress=bar,
+                           bar_calibration=args.bar_calibration)
+    for line in summary_lines(rep, report_kind(rep, _is_positioning_log(args.log))):
         print(line)
     print(f"wrote {said(args.json_out)}" + (f" and {Path(args.report) / 'index.html'}" if args.report else ""))
     return 0

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
-from scenarios.cli.options import GRID_HELP, add_mc_arg, add_noise_arg, check_mc, parse_grid
+from scenarios.cli.options import GRID_HELP, add_bar_calibration_arg, add_mc_arg, add_noise_arg, check_mc, parse_grid
 
 
 def register(sub) -> None:
-    p = sub.add_parser("identify", help="2D self-calibration on a rotary table (workpiece, X/Y and C errors)")
-    p.add_argument("log", help="probe-log/1 campaign: the same targets at several C angles")
+    p = sub.add_parser("identify", help="2D self-calibration on a rotary table (workpiece, X/Y and C errors); on a "
+                                         "multi-feature bar's log (artefact: mfb) the 21 errors of X, Y, Z")
+    p.add_argument("log", help="probe-log/1 campaign: the same targets at several C angles, or a multi-feature "
+                               "bar's placements (its artefact line 'mfb': the volumetric identification, Viprey "
+                               "2016; what the log must hold: docs/formats.md)")
     p.add_argument("--json", required=True, metavar="OUT", help="JSON report to write (atomically)")
-    p.add_argument("--grid-mm", default="22", metavar="STEP|x0:x1:step", help=GRID_HELP + " (22)")
+    p.add_argument("--grid-mm", default=None, metavar="STEP|x0:x1:step",
+                   help=GRID_HELP + " (22; not for an MFB log, whose nodes are its bars' points of interest)")
     p.add_argument("--delta-l-um", type=float, default=None,
                    help="X positioning error at the last x node, measured (eq 17); omitted = scale unknown")
+    add_bar_calibration_arg(p)
     add_mc_arg(p, "default: none, the linear propagation's U95 alone; the runs draw the probing noise")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the Monte Carlo runs (0); only with --mc: without it nothing is drawn")
@@ -30,8 +35,10 @@ def register(sub) -> None:
         p, "a ripple finer than the grid each table holds, from the machine's spec (e.g. a screw's pitch error: "
            "EXX=0.38:10,EYY=0.2:10; amplitude bound um, period mm; tables EXX, EYX, EXY, EYY): a sinusoid at an "
            "unknown phase in the U95 (the residuals do not show its value at the datum's nodes). Omitted: the U95 "
-           "holds only the model error the residuals show",
-        "the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, e.g. ECY=0.15:10")
+           "holds only the model error the residuals show. An MFB log: any translation table of X, Y, Z (as vmt "
+           "scenario mfb-*)",
+        "the same for the yaw table (ECY or ECX, the machine's): amplitude urad and period mm, e.g. ECY=0.15:10; an "
+        "MFB log: any angular table of X, Y, Z")
     from scenarios.cli.guard import NOISE_POSITIVE
 
     p.set_defaults(func=run, vmt_rules=NOISE_POSITIVE)   # the sigma of the U95: > 0, -1 and 0 in one phrasing
@@ -61,10 +68,20 @@ def _run(args, bar) -> int:
 
     if args.tool_offset_mm is not None:
         parse_tool_offset(args.tool_offset_mm)     # a bad value refused before any work (the commands' one parser)
-    sub = _declared(args)
+    from scenarios.cli.options import declared_ripples
+
+    declared_ripples(args)  # their form refused before any work; the tables they name once the log's kind is known
     steps = 4 if args.mc else 3
     bar(0, steps)
     log = read_probe(args.log, "identify", bar=bar)
+    from core.mfblog import is_mfb_log
+
+    if is_mfb_log(log):     # a multi-feature bar: the volumetric identification, never the planar one
+        return _run_mfb(args, log, bar)
+    if args.bar_calibration is not None:
+        raise ConfigError(f"--bar-calibration: {args.log} is not a multi-feature bar's log (its artefact line is "
+                          f"not 'mfb'): the option is for MFB logs")
+    sub = _declared(args)
     # J: the log's tool_offset_mm line (the record of what was done), else --tool-offset-mm, else unknown; an
     # option that says another J than the log's is refused here, before any work and any file written
     J_mm, J_from = tool_offset_of_log(log, args.tool_offset_mm)
@@ -91,7 +108,7 @@ def _run(args, bar) -> int:
     on = identify_record(log, J_mm, planar & log.ok)   # J: the log's tool_offset_mm line or --tool-offset-mm
     file_row = np.flatnonzero(planar)[t.row]           # each touch's data row in the file (0-based, as the reader)
     del log, planar  # the touches hold what the identification needs: the log's memory goes before it
-    grid = parse_grid(args.grid_mm, t.pn_R)
+    grid = parse_grid("22" if args.grid_mm is None else args.grid_mm, t.pn_R)
     dL = None if args.delta_l_um is None else args.delta_l_um * 1e-6
     sigma = None
     if args.noise_um is not None:
@@ -228,4 +245,95 @@ def _declared(args) -> dict:
         if k not in RIPPLE_TABLES[unit]:
             raise ConfigError(f"--declared-ripple-{unit}-mm: {k} is not a table of the self-calibration "
                               f"(one of {', '.join(RIPPLE_TABLES[unit])})")
+    return out
+
+
+def _run_mfb(args, log, bar) -> int:
+    """``vmt identify`` on a multi-feature bar's log: the 21 errors of X, Y, Z (:func:`scenarios.mfb.identify_log`),
+    the options the planar identification alone takes refused in one line, nothing written."""
+    import numpy as np
+
+    from core.exceptions import ConfigError
+    from core.mfblog import STYLUS_COLUMN, TOOL_OFFSET_KEY, read_mfb_log
+
+    src = args.log
+    for opt, v in (("--grid-mm", args.grid_mm), ("--delta-l-um", args.delta_l_um)):
+        if v is not None:
+            why = {"--grid-mm": "its error tables' nodes are its bars' points of interest (its error_table_nodes_mm "
+                                "line, else derived from the bars)",
+                   "--delta-l-um": "the bar's calibration gives the scale"}[opt]
+            raise ConfigError(f"{opt}: {src} is a multi-feature bar's log: {why}")
+    from scenarios.cli.options import declared_ripples
+    from scenarios.mfb import _check_declared_ripple
+
+    declared = _check_declared_ripple(declared_ripples(args))   # (vmt scenario mfb-*'s: any motion table)
+    if args.tool_offset_mm is not None:
+        if log.has(STYLUS_COLUMN):
+            raise ConfigError(f"--tool-offset-mm: {src} names each row's stylus (its {STYLUS_COLUMN} column and "
+                              "stylus_offsets_mm line): the option is for a log of one probe")
+        from dataclasses import replace
+
+        from scenarios.cli.options import tool_offset_of_log
+
+        J_mm, _ = tool_offset_of_log(log, args.tool_offset_mm)
+        log = replace(log, meta={**log.meta, TOOL_OFFSET_KEY: ",".join(repr(float(v)) for v in J_mm)})
+    cert = _bar_certificate(args)
+    ml = read_mfb_log(log, cert)
+    sigma = args.noise_um * 1e-6 if args.noise_um is not None else ml.sigma_probe_m
+    if sigma is None:
+        raise ConfigError(f"{src}: no probing noise for the U95: give --noise-um (k = 1) or the log's "
+                          "probe_repeatability_k2_um line")
+    warned = list(log.warnings)
+    machine = log.meta.get("machine") or log.meta.get("plan_machine")
+    del log
+    bar(1, 4)
+    from scenarios.cli.guard import about_file
+    from scenarios.mfb import identify_log
+
+    with about_file(src):   # 'rank deficient by 2 ...': of this log's plan
+        doc = identify_log(ml, sigma_m=sigma, mc_runs=args.mc, rng=np.random.default_rng(args.seed or 0),
+                           source=src, machine=machine, progress=lambda k, n: bar(1 + k, 4), declared_ripple=declared)
+    doc["input_warnings"] = warned
+    from core.atomic import write_json_atomic
+
+    out = write_json_atomic(args.json, doc, special=True)
+    bar.close()
+    for line in mfb_summary_lines(doc):
+        print(line)
+    from scenarios.cli.guard import said
+
+    print(f"wrote {said(out)}")
+    return 0
+
+
+def _bar_certificate(args):
+    """``--bar-calibration FILE`` (vmt-bar-calibration/1) as a :class:`core.mfblog.BarCertificate`, or None."""
+    if args.bar_calibration is None:
+        return None
+    from core.mfblog import BarCertificate
+    from scenarios.mfb import read_bar_calibration
+
+    cal, _ = read_bar_calibration(args.bar_calibration)
+    return BarCertificate(cal.E_m, cal.u_m, f"--bar-calibration {args.bar_calibration}")
+
+
+def mfb_summary_lines(doc: dict) -> list[str]:
+    """What ``vmt identify`` prints for an MFB log: the campaign, the model, each error's largest value and U95."""
+    from core.exceptions import counted
+
+    out = [f"{doc['log']}: multi-feature bar, {counted(doc['setups'], 'set-up')}, "
+           f"{counted(doc['measurements'], 'measurement')}, {doc['touches']} touches on chain {doc['chain']}; "
+           f"{doc['model']}, residual RMS {doc['rms_residual_um']:.3f} um",
+           f"bar calibration from {doc['bar_calibration']}; nodes from "
+           + ("the log's error_table_nodes_mm line" if doc["nodes_from"] == "log" else "the bars' points of interest")
+           + f"; probing noise {doc['noise_um']:.3f} um (k = 1)",
+           f"{'error':6s} {'unit':5s} {'max|identified|':>16s} {'max U95':>9s}"]
+    for s, e in doc["errors"].items():
+        u = f"{max(e['u95']):9.3f}" if "u95" in e else f"{'n/a':>9s}"
+        out.append(f"{s:6s} {e['unit']:5s} {max(abs(v) for v in e['identified']):16.3f} {u}")
+    if doc.get("u95_method"):
+        out.append(f"U95: {doc['u95_method']}, of {', '.join(doc.get('u95_inputs') or ()) or 'no input'}")
+    for k in ("model_fit_note", "between_nodes_note"):
+        if doc.get(k):
+            out.append(f"note: {doc[k]}")
     return out

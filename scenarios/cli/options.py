@@ -401,3 +401,13 @@ def parse_declared_ripple(text: str, unit: str = "um") -> dict:
             raise ConfigError(f"{opt}: {sym} declared twice")
         out[sym] = (a * 1e-6, p * 1e-3)
     return out
+
+
+def add_bar_calibration_arg(p) -> None:
+    """``--bar-calibration FILE`` on ``vmt identify`` and ``vmt discover``: a multi-feature bar's certificate
+    (``vmt-bar-calibration/1``) for an MFB log (one meaning in every command: the bar's calibration to identify
+    with; ``vmt scenario mfb-*`` defines its own, the same file)."""
+    p.add_argument("--bar-calibration", default=None, metavar="FILE", dest="bar_calibration",
+                   help="an MFB log (artefact: mfb): the bar's calibration to identify with (vmt-bar-calibration/1 "
+                        "JSON, as 'vmt scenario mfb-reversal --json FILE' writes it) instead of the log's own "
+                        "bar_calibration_E_um / bar_calibration_u_um lines; not for other logs")

@@ -25,9 +25,15 @@ def register(sub) -> None:
         description=__doc__.split("\n\n")[1] if __doc__ else None,
         epilog="artefacts (and their defaults):\n  " + catalog.describe().replace("\n", "\n  ")
         + "\n  positioning   an ISO 230-2 positioning test of one axis\n                default: on vmc-3axis, axis X"
+        + "\n  mfb-3axis     the multi-feature bar's 3-axis plan of 'vmt scenario mfb-3axis' (17 measurements, 7"
+        + "\n                styli), its campaign for the same seed, as a log vmt identify / discover read"
+        + "\n                default: on vmc-3axis, its study errors"
+        + "\n  mfb-5axis     the same for the 5-axis plan (mikron-ucp710, A and C)"
         + "\n\nmachines (--machine NAME, or a machine file):\n  " + describe().replace("\n", "\n  "))
-    p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",),
-                   help="artefact to probe, or 'positioning' for an ISO 230-2 test of one axis")
+    p.add_argument("artefact", choices=tuple(catalog.CATALOG) + ("positioning",) + MFB_PLANS,
+                   help="artefact to probe, 'positioning' for an ISO 230-2 test of one axis, or an MFB plan of "
+                        "vmt scenario (mfb-3axis, mfb-5axis: every measurement of the plan, its styli and "
+                        "certificate in the log)")
     p.add_argument("--out", required=True, help="probe-log/1 CSV to write (positioning-log/1 for positioning)")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the probing noise (0); only where there is noise (positioning: of the scatter "
@@ -45,6 +51,10 @@ def register(sub) -> None:
     p.add_argument("--no-collision-check", action="store_true", help="skip the MuJoCo path checks")
     _add_positioning_options(p)
     p.set_defaults(func=run)
+
+
+#: The MFB plans ``vmt simulate`` writes as a log (``scenarios.mfb.PLANS``: the campaign of ``vmt scenario NAME``).
+MFB_PLANS = ("mfb-3axis", "mfb-5axis")
 
 
 #: Share of ``vmt simulate ARTEFACT``'s work done (percent) when its machine is built (the imports and
@@ -68,6 +78,8 @@ def run(args) -> int:
             raise ConfigError(why)
     if args.artefact == "positioning":
         return _run_positioning(args)
+    if args.artefact in MFB_PLANS:
+        return _run_mfb_plan(args)
     from scenarios.cli.guard import progress_line
 
     with progress_line(f"simulate {args.artefact}: % of the work") as bar:
@@ -246,3 +258,45 @@ def _run_positioning(args) -> int:
           f"{log.meta['cycle_kind']} cycle, {log.n} readings over {log.t_s[-1]:.0f} s, errors {log.meta['errors']}")
     return 0
 
+
+
+def _run_mfb_plan(args) -> int:
+    """``vmt simulate mfb-3axis|mfb-5axis --out LOG``: the campaign :func:`scenarios.mfb.run` simulates for this
+    seed (``vmt scenario NAME --seed S``'s, touch for touch), written by :func:`scenarios.mfb.campaign_log`."""
+    from core.exceptions import ConfigError
+
+    for name in POSITIONING_ONLY:
+        if getattr(args, name, None) is not None:
+            flag = "--move-feed-mm-min" if name == "move_feed" else f"--{name.replace('_', '-')}"
+            raise ConfigError(f"{flag} applies to 'vmt simulate positioning' only")
+    for flag, given in (("--c-angles-deg", args.c_angles), ("--plan-only", args.plan_only),
+                        ("--no-collision-check", args.no_collision_check)):
+        if given:
+            raise ConfigError(f"{flag}: the {args.artefact} plan places its bars itself and is always checked for "
+                              "collisions (vmt scenario's plan); leave it out")
+    spec = None
+    from scenarios.mfb import PLANS, campaign_log, run
+
+    if args.machine is not None or args.errors is not None:
+        from sim.machinefile import truth_machine
+
+        own = PLANS[args.artefact]().machine
+        name = args.machine or own
+        if name != own or (args.errors or "study") != "study":
+            spec = truth_machine(name, args.errors, "study")
+    seed = 0 if args.seed is None else args.seed
+    from scenarios.cli.guard import progress_line
+
+    with progress_line(f"simulate {args.artefact}: steps") as bar:
+        r = run(args.artefact, seed=seed, noise_um=args.noise_um, mc_runs=0, machine=spec, progress=bar)
+        log = campaign_log(r, {"errors": "study" if spec is None else (args.errors or "study"), "seed": str(seed),
+                               "scenario": args.artefact})
+        from core.probelog import write_probe_log
+
+        write_probe_log(args.out, log, special=True)
+    from scenarios.cli.guard import said
+
+    print(f"{said(args.out)}: campaign of {log.n} touches on {args.artefact} ({r.doc['measurements']} "
+          f"measurements, {r.doc['setups']} set-ups), machine {r.doc['machine']}, seed {seed}; "
+          f"vmt identify / vmt discover read it")
+    return 0
