@@ -264,6 +264,10 @@ def identified_on_mismatch(state: "MachineState", machine: str, chain: str) -> s
     return None
 
 
+#: The symbols whose common slope (the axes' scale) a state with :attr:`MachineState.scale_unknown` does not hold.
+SCALE_SYMBOLS = ("EXX", "EYY")
+
+
 #: Probe offsets closer than this on every axis are the same probe, mm (a file rounds them to 1e-9 mm).
 J_SAME_MM = 1e-3
 
@@ -340,6 +344,15 @@ class MachineState:
     identified_on: dict | None = None
     at_readings: bool = False
     method: str = ""
+
+    @property
+    def scale_unknown(self) -> str | None:
+        """The convention that says the state's scale is its gauge (None: the scale is known): a 2D
+        self-calibration without a length reference (``vmt identify`` without ``--delta-l-um``) pins EXX at
+        its last node to 0 as well, so EXX and EYY carry an unknown common slope (:data:`SCALE_SYMBOLS`) and
+        a length measured with the state carries that unknown (``core.selfcal`` writes the word ``scale
+        unknown`` into the convention)."""
+        return next((c for c in self.conventions if "scale unknown" in c), None)
 
     def at_axis_positions(self, J_m) -> "MachineState":
         """The state with its tables at the axis positions: a state at the readings (:attr:`at_readings`)
