@@ -330,7 +330,8 @@ def state_scale_check(st: Setting) -> tuple[str | None, str | None]:
     first, so EXX and EYY lack one common slope, the tool tip's scale at the probed height (the axes' own
     scale with the pitch and yaw errors' Abbe terms). It is fixed, not estimated: no covariance of the
     state holds it, and a length measured with the state is off by that scale times the length (the demo's
-    identify.json: a face distance of 120 mm off by 5-8 um, about 65 um/m, with a U95 of 3 um). An interval
+    machine, its tip scale -28 um/m: a 120 mm face distance 3.0 um off from it alone, U95 3.5 um; a 20 mm
+    bore's diameter 1.4 um off, U95 1.2, outside; tests/scenarios/test_vcmm_route37.py). An interval
     that leaves a known systematic effect out of its budget is no coverage interval (GUM, JCGM 100 3.2.4
     and 6.3.1), and nothing in the state bounds it, so no interval is given: a measurand the scale moves is
     refused, with the way to a state that holds it (``vmt identify --delta-l-um``, a length measured along

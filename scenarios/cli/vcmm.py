@@ -138,7 +138,7 @@ def run(args) -> int:
                 print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
-    if state is not None:   # a state that cannot carry the scale (session 37): refused, or the task's slopes carry it
+    if state is not None:   # a state that cannot carry the scale (session 37): refused when it moves a measurand
         from scenarios.vcmm import state_scale_check
 
         why, notice = state_scale_check(st)
