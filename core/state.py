@@ -21,7 +21,8 @@ covariance")::
      "identified_on": {"machine": "nmv3000", "chain": "V[w-C-A-b-Y-X-Z-(C)-t]",
                        "probe_offsets_J_mm": [[0, 0, 150]] | null, "z_mm": [27.0, 27.0] | null,
                        "t_s": [0.0, 4210.5],                             # optional (session 34)
-                       "temperature_C": {"temp_spindle_C": [20.1, 20.4, 20.9]}}}  # optional: min, mean, max
+                       "temperature_C": {"temp_spindle_C": [20.1, 20.4, 20.9]},  # optional: min, mean, max
+                       "controller": "grbl://192.168.1.20:23"}}         # optional (session 37)
 
 ``positions`` is :data:`POSITIONS` (the nodes at the axis positions reading + J); a ``vmt identify``
 without ``--tool-offset-mm`` (J unknown) writes :data:`POSITIONS_READINGS`, its nodes at the readings, and a
@@ -31,7 +32,8 @@ the placed state saves (:func:`state_doc`) with ``positions`` :data:`POSITIONS`.
 the readings under either wording.
 
 ``identified_on`` (since session 26; optional, a file without it reads with a notice) says what the
-state was identified on: the machine's name and ISO 10791 chain, the probe offsets J of the touches
+state was identified on: the machine's name (the kinematic model: the machine the probe log's plan was made
+for, :func:`log_machine`, not the controller that moved it) and ISO 10791 chain, the probe offsets J of the touches
 (mm, tool side; null: the log did not state them) and the range of the touches' Z axis readings (mm; null
 for a 3D identification whose tables run along Z). A state is refused on another machine or chain
 (:func:`identified_on_mismatch`). Since session 34 (review33a F8) it may also say when and at what
@@ -39,7 +41,10 @@ temperature: ``t_s`` the first and last touch's time (s from the campaign's star
 probe-log/1 holds no clock date) and ``temperature_C`` per ``temp_<name>_C`` sensor of the log its min,
 mean and max over the touches used. Both keys are left out when the log does not give them (a record
 written before session 34 has neither and reads as before); :func:`temperature_notice` compares them
-with the temperatures of the touches a state is applied to.
+with the temperatures of the touches a state is applied to. Since session 37 it may name the ``controller``
+that moved the machine (the log's ``controller`` line), a record only; a state identified before from a
+``vmt probe`` or ``vmt import`` log has the controller's name as its ``machine`` (``grbl://...``,
+``virtual:...``, ``grbl``, ``linuxcnc``), and only its chain is compared (:func:`controller_named`).
 
 A parameter with a ``symbol`` and ``at_mm`` is one node of that ISO 230-1
 motion error's table along its axis (the symbol names the axis); with a
@@ -125,11 +130,14 @@ def estimate_doc(names, symbols, at_m, units, theta, cov, *, method: str, interp
             "parameters": params, "values": (theta * 1e6).tolist(), "covariance": (cov * 1e12).tolist()}
 
 
-def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None, t_s=None, temperature_C=None) -> dict:
+def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None, t_s=None, temperature_C=None,
+                  controller=None) -> dict:
     """The ``identified_on`` record of an estimate (module doc): ``machine`` name, ``chain`` (ISO 10791),
     ``probe_offsets_J_mm`` (k, 3) mm or None (unknown), ``z_mm`` (lo, hi) of the touches' Z readings or None;
-    optional (keys left out when None): ``t_s`` (first, last) touch time, s from the campaign's start, and
-    ``temperature_C`` {sensor column: (min, mean, max)} degC (:func:`log_conditions` makes both from a log)."""
+    optional (keys left out when None): ``t_s`` (first, last) touch time, s from the campaign's start,
+    ``temperature_C`` {sensor column: (min, mean, max)} degC (:func:`log_conditions` makes both from a log),
+    and ``controller``, what moved the machine and reported the touches (a log's ``controller``,
+    :func:`log_machine`; a record, never compared)."""
     J = None if probe_offsets_J_mm is None else [[round(float(v), 9) for v in j] for j in probe_offsets_J_mm]
     z = None if z_mm is None else [round(float(v), 9) for v in z_mm]
     rec = {"machine": None if machine is None else str(machine), "chain": None if chain is None else str(chain),
@@ -138,7 +146,37 @@ def identified_on(machine, chain, probe_offsets_J_mm=None, z_mm=None, t_s=None, 
         rec["t_s"] = [round(float(v), 6) for v in t_s]
     if temperature_C is not None:
         rec["temperature_C"] = {str(k): [round(float(v), 6) for v in vals] for k, vals in temperature_C.items()}
+    if controller is not None:
+        rec["controller"] = str(controller)
     return rec
+
+
+#: The ``source`` of a probe log a controller measured (``vmt probe``, ``vmt import linuxcnc|grbl``): before
+#: session 37 its ``machine`` line named the controller and ``plan_machine`` the plan's machine.
+_MEASURED_SOURCES = ("vmt probe", "vmt import ")
+
+
+def log_machine(meta: dict) -> tuple[str | None, str | None]:
+    """``(machine, controller)`` a probe log's metadata names: the machine whose structure its plan was made
+    for (the kinematic model a state identified from it holds) and what moved it and reported the touches
+    (``grbl://HOST:PORT``, ``virtual:SCENE``, ``linuxcnc``, ``grbl``; None for a simulator's log).
+
+    Since session 37 a measured log writes both (``machine``: the plan's, ``controller``); a log measured
+    before (no ``controller`` line, its ``source`` ``vmt probe`` or ``vmt import ...``) named the controller
+    as its ``machine`` and the plan's machine as ``plan_machine``: read so, so an old log identifies on the
+    plan's machine too. None: the log does not say."""
+    if "controller" in meta:
+        return meta.get("machine"), meta["controller"]
+    if str(meta.get("source", "")).startswith(_MEASURED_SOURCES):
+        return meta.get("plan_machine"), meta.get("machine")
+    return meta.get("machine"), None
+
+
+def controller_named(name) -> bool:
+    """Whether a state's ``identified_on.machine`` is a controller's name, not a machine's (a state identified
+    before session 37 from a ``vmt probe`` or ``vmt import`` log, :func:`log_machine`): it says nothing of the
+    kinematic model, so only the chain is compared (:func:`identified_on_mismatch`)."""
+    return isinstance(name, str) and (name.startswith(("grbl://", "virtual:")) or name in ("grbl", "linuxcnc"))
 
 
 def log_conditions(log, used=None) -> dict:
@@ -213,6 +251,8 @@ def identified_on_mismatch(state: "MachineState", machine: str, chain: str) -> s
     if rec is None:
         return None
     got_m, got_c = rec.get("machine"), rec.get("chain")
+    if controller_named(got_m):   # a controller's name (a state identified before session 37): the chain alone
+        got_m = None
     where = ", ".join(w for w in (
         None if got_m is None else f"machine {got_m!r}", None if got_c is None else f"chain {got_c}",
         None if not rec.get("z_mm") else f"Z {rec['z_mm'][0]:g}..{rec['z_mm'][1]:g} mm") if w)
@@ -222,6 +262,10 @@ def identified_on_mismatch(state: "MachineState", machine: str, chain: str) -> s
         return (f"identified on {where}, not on machine {machine!r}: identify this machine, or name the one "
                 "it was identified on")
     return None
+
+
+#: The symbols whose common slope (the axes' scale) a state with :attr:`MachineState.scale_unknown` does not hold.
+SCALE_SYMBOLS = ("EXX", "EYY")
 
 
 #: Probe offsets closer than this on every axis are the same probe, mm (a file rounds them to 1e-9 mm).
@@ -300,6 +344,15 @@ class MachineState:
     identified_on: dict | None = None
     at_readings: bool = False
     method: str = ""
+
+    @property
+    def scale_unknown(self) -> str | None:
+        """The convention that says the state's scale is its gauge (None: the scale is known): a 2D
+        self-calibration without a length reference (``vmt identify`` without ``--delta-l-um``) pins EXX at
+        its last node to 0 as well, so EXX and EYY carry an unknown common slope (:data:`SCALE_SYMBOLS`) and
+        a length measured with the state carries that unknown (``core.selfcal`` writes the word ``scale
+        unknown`` into the convention)."""
+        return next((c for c in self.conventions if "scale unknown" in c), None)
 
     def at_axis_positions(self, J_m) -> "MachineState":
         """The state with its tables at the axis positions: a state at the readings (:attr:`at_readings`)
@@ -482,7 +535,7 @@ def _read_identified_on(rec, fail) -> dict | None:
         return None
     if not isinstance(rec, dict):
         fail("identified_on", "expected an object")
-    for k in ("machine", "chain"):
+    for k in ("machine", "chain", "controller"):
         if rec.get(k) is not None and not isinstance(rec[k], str):
             fail(f"identified_on.{k}", f"expected a string or null, got {rec[k]!r}")
 
@@ -503,4 +556,4 @@ def _read_identified_on(rec, fail) -> dict | None:
     if temps is not None and not (isinstance(temps, dict) and all(
             isinstance(k, str) and numbers(v, 3) and v[0] <= v[1] <= v[2] for k, v in temps.items())):
         fail("identified_on.temperature_C", "expected {sensor: [min, mean, max] C} (min <= mean <= max) or null")
-    return identified_on(rec.get("machine"), rec.get("chain"), J, z, t, temps)
+    return identified_on(rec.get("machine"), rec.get("chain"), J, z, t, temps, rec.get("controller"))

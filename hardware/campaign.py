@@ -422,11 +422,18 @@ def program_lines(steps: list[Step], settings: ProbeSettings, rotary: bool = Fal
 
 
 #: Plan metadata a measured log keeps under its own name: what the part, the probe and the machine's
-#: structure are (the analysis reads them: ``stylus_r_mm``, ``kinematic_chain``). Every other key of
-#: the plan is about how the plan was made (a simulator's ``generator``, ``probe_repeatability_k2_um``,
-#: ``feed_mm_per_min``, ``machine``, ``seed``) and is kept as ``plan_<key>``: a measured log never
-#: claims the simulator's provenance or settings as its own.
-PLAN_META_KEPT = ("artefact", "stylus_r_mm", "kinematic_chain")
+#: structure are (the analysis reads them: ``stylus_r_mm``, ``kinematic_chain``, and ``machine``, the
+#: machine the plan was made for, whose kinematic model a state identified from the log holds: ``vmt vcmm
+#: --machine-state`` compares it). Every other key of the plan is about how the plan was made (a
+#: simulator's ``generator``, ``probe_repeatability_k2_um``, ``feed_mm_per_min``, ``seed``) and is kept as
+#: ``plan_<key>``: a measured log never claims the simulator's provenance or settings as its own. What
+#: moved the machine and reported the touches is the log's own ``controller`` line (:data:`CONTROLLER_KEY`;
+#: before session 37 a measured log wrote it as ``machine`` and the plan's machine as ``plan_machine``,
+#: which :func:`core.state.log_machine` still reads).
+PLAN_META_KEPT = ("artefact", "stylus_r_mm", "kinematic_chain", "machine")
+#: The metadata key naming the controller a measured log was made through (``grbl://HOST:PORT``,
+#: ``virtual:SCENE``; ``linuxcnc``, ``grbl`` for ``vmt import``).
+CONTROLLER_KEY = "controller"
 
 
 def plan_meta(meta: dict) -> dict:
@@ -876,7 +883,7 @@ def run_campaign(backend, plan: ProbeLog, out, settings: ProbeSettings, *, resum
         columns = log_columns(plan, temps)
         started = float(clock())
         meta = {"format": FORMAT, **plan_meta(plan.meta)}
-        meta.update({"machine": backend.name, "source": "vmt probe",
+        meta.update({CONTROLLER_KEY: backend.name, "source": "vmt probe",
                      "plan": plan_path or plan.source, "started_unix": repr(started),
                      "probe_feed_mm_min": settings.probe_feed_mm_min,
                      "clearance_mm": settings.clearance_mm, "overtravel_mm": settings.overtravel_mm})

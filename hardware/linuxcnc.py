@@ -628,7 +628,7 @@ def import_probe_file(path, plan: ProbeLog | None = None, *, dt_s: float = 1.0,
     pos = data[:, :3] * (25.4 if units == "inch" else 1.0)
     if units == "inch":     # a step of 25.4 x 10^-K mm is no decimal step: the converted values written exact
         printed = {}
-    meta = {"machine": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
+    meta = {"controller": "linuxcnc", "source": f"vmt import linuxcnc {Path(path).name}",
             "t_s_source": f"plan order x {dt_s:g} s (the probe file has no clock)"}
     built = plan is None
     if built:

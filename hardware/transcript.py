@@ -595,7 +595,7 @@ def import_transcript(path, plan: ProbeLog, *, dt_s: float = 1.0, stroke: Stroke
     if t is None:
         t = np.arange(k) * float(dt_s)
     status = ["ok" if x else "no_trigger" for x in touched]
-    meta = {"machine": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
+    meta = {"controller": "grbl", "source": f"vmt import grbl {Path(path).name}", "t_s_source": src}
     if tool_offset_mm is not None:   # the J taken off the reports: the readings are the tip centres
         meta[TOOL_OFFSET_KEY] = tool_offset_text(tool_offset_mm)
     if repeats:

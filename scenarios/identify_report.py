@@ -15,17 +15,19 @@ import numpy as np
 
 def identify_record(log, J_mm=None, used=None) -> dict:
     """What a state identified from ``log``'s touches is identified on: the keyword arguments of
-    :func:`core.state.identified_on` (machine and chain from the log's header, ``J_mm`` (3,) mm or
+    :func:`core.state.identified_on` (machine, chain and controller from the log's header
+    (:func:`core.state.log_machine`: the machine its plan was made for, not the controller), ``J_mm`` (3,) mm or
     None (unknown: probe-log/1 holds none), the Z readings' range of the touches ``used``
     (a bool mask, default ``log.ok``), their time span and temperatures (:func:`core.state.log_conditions`)).
     Made before the log is let go (the identification needs only the touches), turned into the record by
     :func:`identify_report`."""
-    from core.state import log_conditions
+    from core.state import log_conditions, log_machine
 
     used = log.ok if used is None else used
     z = log.col("Z_mm")[used]
     z = z[np.isfinite(z)]
-    return dict(machine=log.meta.get("machine"), chain=log.meta.get("kinematic_chain"),
+    machine, controller = log_machine(log.meta)   # the plan's machine, not the controller's name (session 37)
+    return dict(machine=machine, chain=log.meta.get("kinematic_chain"), controller=controller,
                 probe_offsets_J_mm=None if J_mm is None else [J_mm],
                 z_mm=(float(z.min()), float(z.max())) if z.size else None,
                 **log_conditions(log, used))   # when and at what temperature (review33a F8): t_s, temp_*_C

@@ -283,6 +283,76 @@ def prepare(plan, task: V.Task, spec, *, noise_um: float | None = None, state=No
                    touch_times(plan, task, used))
 
 
+#: The trial slope (m/m, 100 um/m) of EXX and EYY by which :func:`state_scale` finds the measurands a state's
+#: unknown scale moves: a run without noise with that slope added, against one without.
+SCALE_TRIAL = 1e-4
+#: A measurand moved by more than this (SI: m, or rad for an angle) at :data:`SCALE_TRIAL` carries the scale:
+#: a length L moves by L x 1e-4 (2 um on a 20 mm diameter), a form error of a horizontal plane or a face across
+#: X by nothing (the touches' contact search resolves 1e-14 m); 1 nm at 100 um/m is a sensitivity of 1e-5 m
+#: per unit scale, far below any length a task measures and far above the simulator's rounding.
+SCALE_CARRIED_SI = 1e-9
+
+
+def state_scale(st: Setting) -> dict | None:
+    """What ``st``'s identified state cannot carry: its scale, when the state says it is unknown
+    (:attr:`core.state.MachineState.scale_unknown`: a self-calibration without a length reference), and the
+    measurands it moves; None when the state knows its scale (or there is no state).
+
+    Returns ``{"what": "scale", "why": the state's convention, "measurands": {name: [symbols whose slope
+    moves it]}}``. Which measurands move is found, not assumed from their kind: each of EXX, EYY
+    (:data:`core.state.SCALE_SYMBOLS`) gets a slope of :data:`SCALE_TRIAL` in a run without noise (the
+    machine's structure with the state's estimate), and a measurand that moves by more than
+    :data:`SCALE_CARRIED_SI` carries the scale. Such a measurand is refused (:func:`state_scale_check`)."""
+    from core.state import SCALE_SYMBOLS
+    from sim.machine import Machine
+
+    state = st.state
+    if state is None or state.scale_unknown is None:
+        return None
+    chain_axes = Machine(dataclasses.replace(st.config, errors={})).chain.axes
+    syms = [sym for sym in SCALE_SYMBOLS if V.iso.symbol(sym).axis in chain_axes]
+    y0 = V.evaluate(st.task, st.rows, simulate_run(st, {}, None, noise=False), st.n_R, st.probe.stylus_r_m, st.Xn_R)
+    moved: dict = {}
+    for sym in syms:
+        p = simulate_run(st, {(sym, 1): SCALE_TRIAL}, None, noise=False)
+        dy = V.evaluate(st.task, st.rows, p, st.n_R, st.probe.stylus_r_m, st.Xn_R) - y0
+        for m, d in zip(st.task.measurands, dy):
+            if abs(d) > SCALE_CARRIED_SI:
+                moved.setdefault(m.name, []).append(sym)
+    return {"what": "scale", "why": state.scale_unknown, "measurands": moved}
+
+
+def state_scale_check(st: Setting) -> tuple[str | None, str | None]:
+    """``(refusal, notice)`` of the state's scale (:func:`state_scale`), each one line or None.
+
+    A state whose scale is unknown (a 2D self-calibration without a length reference: ``vmt identify``
+    without ``--delta-l-um``) has the scale as its gauge: EXX pinned to 0 at its last node as well as its
+    first, so EXX and EYY lack one common slope, the tool tip's scale at the probed height (the axes' own
+    scale with the pitch and yaw errors' Abbe terms). It is fixed, not estimated: no covariance of the
+    state holds it, and a length measured with the state is off by that scale times the length (the demo's
+    machine, its tip scale -28 um/m: a 120 mm face distance 3.0 um off from it alone, U95 3.5 um; a 20 mm
+    bore's diameter 1.4 um off, U95 1.2, outside; tests/scenarios/test_vcmm_route37.py). An interval
+    that leaves a known systematic effect out of its budget is no coverage interval (GUM, JCGM 100 3.2.4
+    and 6.3.1), and nothing in the state bounds it, so no interval is given: a measurand the scale moves is
+    refused, with the way to a state that holds it (``vmt identify --delta-l-um``, a length measured along
+    X; an MFB state, whose bar is calibrated). The task's ``[declared]`` slopes are not taken to carry it:
+    they are drawn apart for X and Y, while the missing scale is one for both (a diameter or a diagonal
+    distance would get about 0.7 of its spread), and a declaration made for the machine file's errors
+    (the shipped block task's 10 um/m) would pass as a bound on a scale it does not bound. A task whose
+    measurands the scale does not move (a horizontal plane's flatness) runs, with a notice."""
+    scale = state_scale(st)
+    if not scale:
+        return None, None
+    src = st.state.source
+    if not scale["measurands"]:
+        return None, (f"{src}: its scale is unknown (identified without --delta-l-um); no measurand of the task "
+                      "moves with it")
+    names = ", ".join(repr(k) for k in scale["measurands"])
+    return (f"{src}: its scale is unknown (a self-calibration without a length reference) and {names} move with "
+            "it: no interval can hold an error nothing in the state bounds; identify with --delta-l-um (a length "
+            "measured along X) or leave those measurands out; nothing run"), None
+
+
 def declared_bounded(task: V.Task, strokes: dict) -> None:
     """Refuse a declared limit whose error leaves the machine file's bounds over the axis's stroke (the one
     check, :func:`sim.machinefile.bound_problem`), naming the task file and the key: each term at its bound,
@@ -763,7 +833,9 @@ def study(st: Setting, seed: int = 0, *, progress=None, budget: bool = True, das
             "machine_state": None if st.state is None else {
                 "file": st.state.source, "symbols": list(st.state.symbols), "conventions": list(st.state.conventions),
                 "interpolation": st.state.interpolation,
-                "positions": POSITIONS_READINGS if st.state.at_readings else POSITIONS},
+                "positions": POSITIONS_READINGS if st.state.at_readings else POSITIONS,
+                # what the state cannot carry (session 37): its scale when unknown, the measurands it moves
+                "cannot_carry": state_scale(st)},
             "declared": [{"source": t.source, "bound": t.bound * 1e6, "distribution": t.distribution,
                           "u": t.u * 1e6, "unit": ("urad" if V.iso.symbol(t.symbol).angular else "um")
                           + {0: "", 1: "/m", 2: "/m2"}[t.power],

@@ -138,6 +138,14 @@ def run(args) -> int:
                 print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
+    if state is not None:   # a state that cannot carry the scale (session 37): refused when it moves a measurand
+        from scenarios.vcmm import state_scale_check
+
+        why, notice = state_scale_check(st)
+        if why:
+            raise ConfigError(why)
+        if notice:
+            print(notice)
     # adaptive (JCGM 101 7.9): the total is the runs foreseen now, revised as the batches come in (review32d F10)
     with progress_line("vcmm: Monte Carlo runs (adaptive: total as foreseen now)") as bar:
         rep = study(st, args.seed, progress=bar, budget=not args.no_budget, dask=args.dask,

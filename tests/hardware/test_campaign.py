@@ -75,7 +75,8 @@ def test_campaign_through_vmt_probe_equals_the_backend(tmp_path, plan_path, caps
     clean = direct_log(tmp_path, plan, noise_um=0.0, name="clean.csv")
     assert np.abs(clean.dq_mm()).max() > 1e-3 > 1.5 * QUANT_MM
     assert "12 of 12 touches (12 new, 0 before" in capsys.readouterr().out
-    assert log.meta["machine"] == srv.url and "started_unix" in log.meta
+    # the controller under its own key (session 37; before, as the log's machine)
+    assert log.meta["controller"] == srv.url and "started_unix" in log.meta
 
 
 def test_virtual_machine_url_runs_the_same_campaign(tmp_path, plan_path):
@@ -561,7 +562,10 @@ def test_measured_log_does_not_claim_the_simulators_provenance(tmp_path, capsys)
         meta = read_probe_log(path).meta
         for k in ("generator", "probe_repeatability_k2_um", "feed_mm_per_min", "planner"):  # ('planner' too)
             assert k not in meta and meta[f"plan_{k}"] == sim_meta[k], (path.name, k)
-        assert meta["plan_machine"] == "nmv3000" and meta["machine"] != "nmv3000"
+        # the plan's machine is the log's (its kinematic model: what a state identified from it holds), the
+        # controller under its own key (session 37; before, machine named the controller, plan_machine the plan's)
+        assert meta["machine"] == "nmv3000" and "plan_machine" not in meta
+        assert meta["controller"] == ("virtual:builtin" if path == out else "linuxcnc")
         assert meta["plan_origin"] == sim_meta["plan_origin"] and "plan_plan_origin" not in meta
         assert all(meta[k] == sim_meta[k] for k in PLAN_META_KEPT)
     assert float(read_probe_log(out).meta["probe_feed_mm_min"]) == 100.0     # the feed it probed at

@@ -52,7 +52,8 @@ def test_hardware_route_gives_the_same_touches_and_state(tmp_path):
     assert cmp["max_difference_over_u95"] < 1e-6
     assert abs(cmp["EC0Y_urad"][1] - cmp["EC0Y_urad"][0]) < 1e-6 * cmp["EC0Y_u95_urad"]
     probed = read_probe_log(tmp_path / "cross-pocket-probed.csv")
-    assert probed.meta["source"] == "vmt probe" and probed.meta["machine"].startswith("virtual:")
+    assert probed.meta["source"] == "vmt probe" and probed.meta["controller"].startswith("virtual:")
+    assert probed.meta["machine"] == machine.config.name    # the plan's machine, its kinematic model (session 37)
     assert [s.split("/")[-1] for s in say.files] == ["cross-pocket.csv", "cross-pocket-plan.csv",
                                                     "cross-pocket-probed.csv", "identify-probed.json"]
     ident = json.loads((tmp_path / "identify-probed.json").read_text())
