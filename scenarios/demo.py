@@ -25,7 +25,10 @@
 9. The virtual CMM (``vmt vcmm --machine-state``) on step 6's identified
    state: a measurement task's uncertainty on the machine as identified,
    beside what the true machine measures.
-10. A report folder (HTML + PNG) and a rerun recording.
+10. Step 6's campaign as the probe log a real bar's campaign is (``vmt
+   simulate mfb-3axis``'s), identified and discovered as ``vmt identify`` and
+   ``vmt discover`` read it: the volumetric model, the same values as step 6.
+11. A report folder (HTML + PNG) and a rerun recording.
 
 Each step is one ``say.head(KEY, ...)`` and one entry of :data:`STEPS` (its
 number follows from its place there); the files it writes go through
@@ -59,10 +62,10 @@ SCREW_UM, SCREW_MM = 1.5, 8.0
 #: The steps in order: (key, relative duration for the time left). The weights are the wall seconds of each step
 #: measured in session 37 at load 18 on 2 cores (CPU s in brackets): machine 2.3 (0.6), campaign 0.9 (0.2),
 #: identify 3.6 (0.8), discover 5.1 (0.9), hardware route 16.6 (3.7), MFB and its closed loop 37 (9.3), ISO 230-2
-#: 0.3 (0.1), its table's closed loop 0.3 (0.05), virtual CMM 18.4 (5.1), report 16.5 (4.9). A step's number is
-#: its place here.
+#: 0.3 (0.1), its table's closed loop 0.3 (0.05), virtual CMM 18.4 (5.1), the MFB log route ~18 (7.0 at load 19:
+#: its wall estimated from its CPU at the others' ratio), report 16.5 (4.9). A step's number is its place here.
 STEPS = (("machine", 2), ("campaign", 1), ("identify", 4), ("discover", 5), ("hardware", 17), ("mfb", 37),
-         ("iso230-2", 1), ("iso230-2 comp", 1), ("vcmm", 18), ("report", 16))
+         ("iso230-2", 1), ("iso230-2 comp", 1), ("vcmm", 18), ("mfb log", 18), ("report", 16))
 
 
 def _n(key: str) -> int:
@@ -154,13 +157,16 @@ def main_job(out: str = "out", seed: int = 2026, progress=None) -> int:
     say.head("hardware", "the hardware route: the same plan through vmt probe's interface, on the same machine")
     _hardware(machine, probe, art, plan, seed, outp, say, res)
     say.head("mfb", "the multi-feature bar: 21 errors of three linear axes, on a 3-axis VMC (vmc-3axis)")
-    mfb_json, mfb_machine = _mfb(seed, outp, say)
+    mfb_json, mfb_machine, mfb_res = _mfb(seed, outp, say)
     say.head("iso230-2", f"ISO 230-2: a positioning test of the Y axis of step {_n('machine')}'s nmv3000 (its worn screw)")
     pos_plan, pos_path = _positioning(machine, seed, outp, say)
     say.head("iso230-2 comp", "ISO 230-2 closed loop: the test's LinuxCNC table for Y, loaded, the test run again")
     _positioning_comp(machine, pos_plan, pos_path, seed, outp, say)
     say.head("vcmm", f"virtual CMM: a measurement's uncertainty on the machine as step {_n('mfb')} identified it")
     _vcmm(mfb_json, mfb_machine, seed, outp, say)
+    say.head("mfb log", f"the bar's campaign as a probe log: step {_n('mfb')}'s touches read by vmt identify and "
+             "vmt discover")
+    _mfb_log(mfb_res, seed, outp, say)
     say.head("report", "report and recording")
     from scenarios.reports import demo_report
 
@@ -450,7 +456,8 @@ def _hardware(machine, probe, art, plan, seed: int, outp: Path, say, res) -> dic
 
 def _mfb(seed: int, outp: Path, say):
     """Step 6: the MFB 3-axis scenario; how many identified values lie within their U95; its compensation
-    applied to the virtual machine and measured again. Returns (mfb-3axis.json's path, the true machine)."""
+    applied to the virtual machine and measured again. Returns (mfb-3axis.json's path, the true machine, the
+    scenario's result)."""
     from core.atomic import json_safe, write_json_atomic
     from scenarios.mfb import closed_loop, default_machine
     from scenarios.mfb import run as run_mfb
@@ -493,7 +500,57 @@ def _mfb(seed: int, outp: Path, say):
         + "; errors applied in part, the fraction that leaves the least mean-square error against their U95 "
           "(0: left out): " + (", ".join(part) or "none") + f" -> {outp / 'mfb-3axis-closed-loop.json'}")
     # the truth the scenario ran on (scenarios.mfb.run without a machine: its plan's default machine, no ripple)
-    return mfb_json, Machine(default_machine(res.plan.machine)[0])
+    return mfb_json, Machine(default_machine(res.plan.machine)[0]), res
+
+
+def _mfb_log(res, seed: int, outp: Path, say) -> dict:
+    """Step 10: step 6's campaign (``res``, :func:`scenarios.mfb.run`'s) written as the probe log a real bar's
+    campaign is, as ``vmt simulate mfb-3axis --out mfb-3axis.csv --seed S`` writes it
+    (:func:`scenarios.mfb.campaign_log`: every touch, the styli's offsets, the nodes and the bar's certificate on
+    its lines); then only the file: identified as ``vmt identify mfb-3axis.csv --mc 0`` does
+    (:func:`core.mfblog.read_mfb_log`, :func:`scenarios.mfb.identify_log`, the log's probe repeatability) and
+    discovered as ``vmt discover mfb-3axis.csv --json J`` does (:func:`scenarios.discover_run.run_discover`: the
+    volumetric baseline, never the planar one). The identified values and linear U95 are set beside step 6's
+    (the same touches: they agree to the rounding of the rebuilt bar poses). The campaign holds no effect
+    beyond the model (the study errors, the probe's noise), so discovery should name none. Returns the figures."""
+    from core.atomic import json_safe, write_json_atomic
+    from core.mfblog import read_mfb_log
+    from core.probelog import write_probe_log
+    from scenarios.cli.reading import read_probe
+    from scenarios.discover_run import run_discover
+    from scenarios.mfb import campaign_log, identify_log
+
+    path = write_probe_log(outp / "mfb-3axis.csv", campaign_log(res, {"errors": "study", "seed": str(seed),  # (vmt simulate's lines)
+                                                                     "scenario": "mfb-3axis"}))
+    log = read_probe(path, "demo")      # from here on, only what the file holds
+    ml = read_mfb_log(log, None)
+    ident = identify_log(ml, sigma_m=ml.sigma_probe_m, mc_runs=0, source=str(path),
+                         machine=log.meta.get("machine") or log.meta.get("plan_machine"),
+                         progress=lambda k, n: say.within(k, 2 * n))
+    id_json = write_json_atomic(outp / "mfb-3axis-identify.json", json_safe(ident))
+    say.within(1, 2)
+    disc_json = outp / "mfb-3axis-discover.json"
+    rep = run_discover(path, disc_json)
+    say.wrote(path, id_json, disc_json)
+    e6 = res.doc["errors"]
+    dv = max(float(np.max(np.abs(np.subtract(e["identified"], e6[k]["identified"])))) for k, e in ident["errors"].items())
+    du = max(float(np.max(np.abs(np.subtract(e["u95"], e6[k]["u95_lin"])))) for k, e in ident["errors"].items())
+    lof = ident["lack_of_fit"]
+    say(f"{log.n} touches, {ident['measurements']} measurements, {ident['setups']} set-ups, "
+        f"{len(ident['styli_mm'])} styli -> {path} (vmt simulate "
+        f"mfb-3axis --out mfb-3axis.csv --seed {seed}: the styli's offsets, the error tables' nodes and the bar's "
+        f"certificate on its lines)")
+    say(f"vmt identify (-> {id_json}): {len(ident['errors'])} errors, residual RMS {ident['rms_residual_um']:.3f} um, "
+        f"lack of fit p {lof['p']:.2f}; every identified value within {dv:.0e} um/urad of step {_n('mfb')}'s, "
+        f"its linear U95 within {du:.0e}")
+    b, nz = rep["baseline"], rep["noise_um"]
+    say(f"vmt discover (-> {disc_json}): baseline {b['model']}: {b['n']} rows, {b['n_params']} parameters, RMS "
+        f"{b['rms_um']:.3f} um, noise {nz['sigma_um']:.3f} um ({nz['method']}, {nz['dof']} dof; the probe's "
+        f"{ident['noise_um']:.3f})")
+    found = [f["cause"] for f in rep["findings"]]
+    say(f"found: {', '.join(found) if found else 'none'} (the campaign holds the study errors and the probe's noise, "
+        "nothing beyond the model)")
+    return {"identified_max_difference": dv, "u95_max_difference": du, "findings": found, "baseline": b}
 
 
 def _positioning(machine, seed: int, outp: Path, say):

@@ -10,7 +10,8 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the main job end to end (simulate, identify, discover; the same plan through "
                        "vmt probe's interface; the MFB and its compensation closed loop; an ISO 230-2 test and its "
-                       "table's closed loop; the virtual CMM on the identified machine; a report)")
+                       "table's closed loop; the virtual CMM on the identified machine; the bar's campaign as a "
+                       "probe log through identify and discover; a report)")
     from scenarios.cli.options import option
 
     option(p, "--out-dir", dest="out_dir", default="out", old=("--out",),

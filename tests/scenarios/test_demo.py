@@ -149,6 +149,26 @@ def test_demo_end_to_end(tmp_path, capsys):
     for r in vc["truth"]:
         assert abs(r["true_minus_mean"]) < 2 * r["U95"], r
     assert vc["vcmm"]["runs"] >= 200 and all(m["converged"] for m in vc["vcmm"]["measurands"])
+    # step 10, the MFB log route: step 6's campaign as the file `vmt simulate mfb-3axis --seed 2026` writes (the
+    # same bytes: the CLI run here), identified from the file alone to step 6's values (measured 1e-9 um/urad:
+    # the rebuilt bar poses' rounding, 1e-15 m amplified; 1e-6 as tests/scenarios/test_mfb_log_route.py) and
+    # discovered on the volumetric baseline: nothing named on a campaign with nothing beyond the model
+    cli_log = tmp_path / "cli-mfb.csv"
+    assert main(["simulate", "mfb-3axis", "--out", str(cli_log), "--seed", "2026"]) == 0
+    assert cli_log.read_bytes() == (out / "mfb-3axis.csv").read_bytes()
+    mlog = read_probe_log(out / "mfb-3axis.csv")
+    assert mlog.n == mfb["touches"] and mlog.meta["artefact"] == "mfb"
+    mid = json.loads((out / "mfb-3axis-identify.json").read_text())
+    assert mid["format"] == "vmt-identify-mfb/1" and set(mid["errors"]) == set(mfb["errors"])
+    for k, e in mfb["errors"].items():
+        np.testing.assert_allclose(mid["errors"][k]["identified"], e["identified"], rtol=0, atol=1e-6, err_msg=k)
+        np.testing.assert_allclose(mid["errors"][k]["u95"], e["u95_lin"], rtol=0, atol=1e-6, err_msg=k)
+    m = re.search(r"every identified value within (\S+) um/urad of step 6's", text)
+    assert m and float(m[1]) < 1e-6, text
+    md = json.loads((out / "mfb-3axis-discover.json").read_text())
+    assert md["format"] == "vmt-discover/1" and md["findings"] == [], md["findings"]
+    assert md["baseline"]["model"].startswith("volumetric MFB") and md["log"] == str(out / "mfb-3axis.csv")
+    assert re.search(r"\n  found: none \(", text), text
     # the closing line names every file the steps wrote, each there
     said = text.split("by step: ", 1)[1].splitlines()[0]
     named = [f for part in said.split("; ") for f in part.split(" ", 1)[1].split(", ")]
@@ -286,6 +306,14 @@ def readme_demo_phrases(text: str, out) -> list[str]:
     ph.append("measures " + ", ".join(f"{x['true_minus_mean']:+.2f}" for x in vc["truth"][:-1])
               + f" and {vc['truth'][-1]['true_minus_mean']:+.2f} µm from the identified means"
               + (", each inside its 95 % interval" if inside else ""))
+    # step 10
+    v = grab(r"(\d+) touches, (\d+) measurements, \d+ set-ups, (\d+) styli -> ", 3)
+    ph.append(f"{v[0]} touches, {v[1]} measurements, {v[2]} styli")
+    v = grab(r"baseline [^\n]*: (\d+) rows, (\d+) parameters, RMS ([\d.]+) um, noise ([\d.]+) um \(residuals, \d+ dof; "
+             r"the probe's ([\d.]+)\)", 5)
+    ph.append(f"{v[0]} rows, {v[1]} parameters, RMS {v[2]} µm, noise {v[3]} µm against the probe's {v[4]}")
+    found = grab(r"\n  found: ([^(]+) \(").strip()
+    ph.append(f"found: {found},")
     return ph
 
 
