@@ -20,18 +20,18 @@ def test_nested_f_known_answer_by_hand():
     y = np.array([1.0, 2.0, 2.0, 4.0])
     r = y - y.mean()
     rss = float(r @ r)
-    assert rss == pytest.approx(4.75, rel=1e-15)
+    assert rss == pytest.approx(4.75, rel=1e-15, abs=0)
     U = (np.array([-3.0, -1.0, 1.0, 3.0]) / np.sqrt(20))[:, None]
     x = np.arange(4.0)
     rss_line = float(np.linalg.lstsq(np.column_stack([np.ones(4), x]), y, rcond=None)[1][0])
-    assert rss_line == pytest.approx(0.7, rel=1e-12)  # the hand figure, by another path
+    assert rss_line == pytest.approx(0.7, rel=1e-12, abs=0)  # the hand figure, by another path
     t = Dg.nested_f(U, r, rss, 3)
     assert t.k == 1 and t.ss == pytest.approx(4.05, rel=1e-12)
     F = 4.05 / (0.7 / 2)
     assert t.F == pytest.approx(F, rel=1e-12) and F == pytest.approx(11.5714, abs=1e-4)
     assert t.p_value == pytest.approx(stats.f.sf(F, 1, 2), rel=1e-10)
     assert t.p_value == pytest.approx(0.076619, abs=1e-6)
-    assert t.explained_rms_m == pytest.approx(np.sqrt((4.05 - 0.35) / 4), rel=1e-12)
+    assert t.explained_rms_m == pytest.approx(np.sqrt((4.05 - 0.35) / 4), rel=1e-12, abs=0)
     assert t.explained_rms_m == pytest.approx(0.96177, abs=1e-5)
     # no residual dof left beyond the direction: no test (dof - k < 1)
     assert Dg.nested_f(U, r, rss, 1).p_value == 1.0
@@ -50,4 +50,4 @@ def test_nested_f_two_directions_known_answer():
     assert (t.k, t.ss, float(r @ r)) == (2, pytest.approx(4.0, rel=1e-12), 8.0)
     assert t.F == pytest.approx(1.5, rel=1e-12)
     assert t.p_value == pytest.approx(stats.f.sf(1.5, 2, 3), rel=1e-10)
-    assert t.explained_rms_m == pytest.approx(np.sqrt(2 / 9), rel=1e-12)
+    assert t.explained_rms_m == pytest.approx(np.sqrt(2 / 9), rel=1e-12, abs=0)

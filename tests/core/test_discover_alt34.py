@@ -96,8 +96,8 @@ def test_f_tests_against_explicit_least_squares():
     tw = D._two_way(so, U, B, SimpleNamespace(columns=E, tries=3.0), SIGMA, Settings())["two_way"]
     _, p_c = _f_direct(y, np.hstack([Q, B]), E)
     _, p_a = _f_direct(y, np.hstack([Q, E]), B)
-    assert tw["p_adjusted_cause_beyond"] == pytest.approx(min(1.0, 3 * p_c), rel=1e-6)
-    assert tw["p_alternative_beyond"] == pytest.approx(p_a, rel=1e-6)
+    assert tw["p_adjusted_cause_beyond"] == pytest.approx(min(1.0, 3 * p_c), rel=1e-6, abs=0)
+    assert tw["p_alternative_beyond"] == pytest.approx(p_a, rel=1e-6, abs=0)
 
 
 def _alternatives_of(y, Q, E, B, mode, monkeypatch, sigma=SIGMA):

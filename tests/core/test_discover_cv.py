@@ -435,7 +435,7 @@ def test_close_pair_scatter_known_answer_round_trip_and_bad_input():
     t = np.array([0.0, 1.0, 100.0, 50.0, 52.0, 60.0])
     y = np.array([0.0, 0.2, 5.0, 1.0, 1.6, 9.0])
     cp = close_pair_scatter(key, y, t, np.zeros(6))
-    assert (cp.dof, cp.groups) == (2, 2) and cp.ss == pytest.approx(0.02 + 0.18, rel=1e-12)
+    assert (cp.dof, cp.groups) == (2, 2) and cp.ss == pytest.approx(0.02 + 0.18, rel=1e-12, abs=0)
     # the same rows in two set-ups of their own: target 1's span is 2 s, its pair 2 s apart > 5 % of it
     assert close_pair_scatter(key, y, t, np.array([0, 0, 0, 1, 1, 1])).dof == 1
 

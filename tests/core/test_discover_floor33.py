@@ -80,9 +80,9 @@ def _alone_unguarded(log, monkeypatch):
     assert not alone["softened"] and ev["lack_of_fit_alone"] == alone
     # the floor's odds: chi2(dof_pe) at dof_pe ms_pe / s^2 from the reported figures
     x = alone["dof_pe"] * (alone["repeats_sigma_um"] / alone["residual_sigma_um"]) ** 2
-    assert alone["p_floor"] == pytest.approx(stats.chi2.cdf(x, alone["dof_pe"]), rel=1e-9)
+    assert alone["p_floor"] == pytest.approx(stats.chi2.cdf(x, alone["dof_pe"]), rel=1e-9, abs=0)
     assert alone["p_value"] == pytest.approx(stats.f.sf(alone["lack_of_fit_F"], alone["dof_lof"], alone["dof_pe"]),
-                                             rel=1e-9)
+                                             rel=1e-9, abs=0)
     return alone
 
 

@@ -123,7 +123,7 @@ def test_declared_norms_are_the_magnitudes(name, info):
     pairs = cause.norms(info)
     assert pairs
     for key, (i, j) in pairs.items():
-        assert vals[key] == pytest.approx(np.hypot(coef[i], coef[j]) / UM, rel=1e-12)
+        assert vals[key] == pytest.approx(np.hypot(coef[i], coef[j]) / UM, rel=1e-12, abs=0)
         out = D._norm_u95(cause, info, key, vals[key], coef, np.eye(8) * 1e-14)
         assert out is not None and out[1][0] <= vals[key] <= out[1][1]
     # a value that is not the declared norm gets no norm interval (the delta method's U95 stays)
@@ -301,7 +301,7 @@ def test_norm_intervals_rule_in_the_report(monkeypatch):
     assert set(iv) == {"EXY_amplitude_um", "EYY_amplitude_um"}
     for key, (lo, hi) in iv.items():
         v = f["params"][key]
-        assert lo <= v <= hi and f["params_u95"][key] == pytest.approx(max(hi - v, v - lo), rel=1e-12), key
+        assert lo <= v <= hi and f["params_u95"][key] == pytest.approx(max(hi - v, v - lo), rel=1e-12, abs=0), key
     assert iv["EXY_amplitude_um"][0] == 0.0 and iv["EYY_amplitude_um"][0] > 2.0
     g, _ = _first_finding(monkeypatch, gen_a, "periodic_axis_error", 1000, NORM_INTERVALS=False)
     assert g["params"]["EXY_amplitude_um"] == f["params"]["EXY_amplitude_um"]

@@ -40,7 +40,7 @@ def test_spread_counts_effective_targets(targets, n_eff):
     sp = D._periodic_target_spread(bl, st, E, {"axis": "X"})
     assert sp["n_targets"] == 6
     assert sp["n_eff"] == pytest.approx(n_eff, rel=1e-12)
-    assert sp["top_share"] == pytest.approx(1 / n_eff, rel=1e-12)
+    assert sp["top_share"] == pytest.approx(1 / n_eff, rel=1e-12, abs=0)
     # each set-up: six positions 10 mm apart -> 20 mm; pooled the positions are 5 mm apart (10 mm)
     assert sp["setup_nyquist_m"] == pytest.approx(20e-3, rel=1e-9)
 

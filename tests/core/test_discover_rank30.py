@@ -90,7 +90,7 @@ def _decisions(bl):
 
 
 def test_decimal_quantum_known_answers():
-    assert B.decimal_quantum(np.array([71.7032877, -37.2419668])) == pytest.approx(1e-7)
+    assert B.decimal_quantum(np.array([71.7032877, -37.2419668])) == pytest.approx(1e-7, abs=0)
     assert B.decimal_quantum(np.array([71.7033, -37.242])) == pytest.approx(1e-4)
     assert B.decimal_quantum(np.array([70.0, -40.0, 2.0])) == 1.0
     assert B.decimal_quantum(np.array([np.pi, np.e])) == 0.0  # (computed, not printed: full precision)
@@ -103,7 +103,7 @@ def test_full_precision_log_keeps_rank_tol():
     t4, bl4 = _planar(_rounded(_text("plate_none_300"), 4))
     # 4 decimals: q / L = 1e-7 m / the largest distance from the C axis
     L = np.abs(t4.pn_R[:, :2] - B.c_axis_centre(t4)).max()
-    assert bl4.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-7 / L, rel=1e-9)
+    assert bl4.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-7 / L, rel=1e-9, abs=0)
 
 
 def test_rounded_nominals_keep_the_design_decisions():

@@ -101,8 +101,8 @@ def test_the_reader_records_the_printed_step_of_the_nominal_and_normal_columns(m
             "s1,p3,2,2,0,0,10,-20.5,0.000,0,1,0\n")
     monkeypatch.setattr(P, "CHUNK_ROWS", 1)
     log = parse_probe_log(text, "steps.csv")
-    assert log.text_steps == {"Xn_mm": pytest.approx(1e-7), "Yn_mm": pytest.approx(0.1), "Zn_mm": pytest.approx(1e-3),
-                              "nx": pytest.approx(1e-7), "ny": pytest.approx(0.1), "nz": 1.0,
+    assert log.text_steps == {"Xn_mm": pytest.approx(1e-7, abs=0), "Yn_mm": pytest.approx(0.1), "Zn_mm": pytest.approx(1e-3),
+                              "nx": pytest.approx(1e-7, abs=0), "ny": pytest.approx(0.1), "nz": 1.0,
                               # (session 32, fitq32: the measured columns too, for vmt fit's rounding floor)
                               "X_mm": 1.0, "Y_mm": 1.0, "Z_mm": 1.0}
     assert from_log(log).text_steps == log.text_steps
@@ -127,7 +127,7 @@ def test_round_nominals_keep_the_decisions_of_the_same_campaign_off_round(monkey
     t, bl = _planar(_plate(0.0, r_mm))
     q = 1.0 if r_mm == 1.0 else 0.1  # (0.5 mm: 1 decimal)
     assert B.decimal_quantum(t.pn_R[:, :2] / 1e-3) == q
-    assert t.text_steps["Xn_mm"] == pytest.approx(1e-7)
+    assert t.text_steps["Xn_mm"] == pytest.approx(1e-7, abs=0)
     assert bl.rank_tol == bl0.rank_tol == B.RANK_TOL
     g0, r0, e0, w0 = _decisions(bl0)
     g, r, e, w = _decisions(bl)
@@ -136,7 +136,7 @@ def test_round_nominals_keep_the_decisions_of_the_same_campaign_off_round(monkey
     monkeypatch.setattr(B, "TEXT_STEPS", False)
     bl_old = B.planar(t)
     L = np.abs(t.pn_R[:, :2] - B.c_axis_centre(t)[:2]).max()
-    assert bl_old.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * q * 1e-3 / L, rel=1e-12)
+    assert bl_old.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * q * 1e-3 / L, rel=1e-12, abs=0)
     assert _decisions(bl_old)[2] is (r_mm != 1.0)  # (the half-mm plate's workpiece survives 0.013 here)
     assert B.planar(t0).rank_tol == B.RANK_TOL  # (off-round: the values' own step, as before)
 
@@ -148,7 +148,7 @@ def test_nominals_printed_to_whole_mm_declare_whole_mm():
     t, _ = _planar(_plate(0.0, nominal_decimals=0))
     assert t.text_steps["Xn_mm"] == 1.0
     L = np.abs(t.pn_R[:, :2] - B.c_axis_centre(t)[:2]).max()
-    assert B.precision_rank_tol(t, B.c_axis_centre(t)) == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-3 / L, rel=1e-12)
+    assert B.precision_rank_tol(t, B.c_axis_centre(t)) == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-3 / L, rel=1e-12, abs=0)
 
 
 def test_normals_round_by_design_are_exact(monkeypatch):
@@ -159,7 +159,7 @@ def test_normals_round_by_design_are_exact(monkeypatch):
     text = (_HDR + "\ns1,p1,0,1,1,0,71.7032877,-37.2419668,0,0.6000000,0.8000000,0.0000000\n"
             "s1,p2,1,2,0,0,12.5000001,40.1234567,0,1.0000000,0.0000000,0.0000000\n")
     t = from_log(parse_probe_log(text, "n.csv"))
-    assert B.precision_rank_tol(t, np.zeros(3)) == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-7, rel=1e-9)
+    assert B.precision_rank_tol(t, np.zeros(3)) == pytest.approx(B.RANK_QUANTUM_FACTOR * 1e-7, rel=1e-9, abs=0)
     monkeypatch.setattr(B, "TEXT_STEPS", False)
     assert B.precision_rank_tol(t, np.zeros(3)) == pytest.approx(B.RANK_QUANTUM_FACTOR * 0.1)
 
@@ -171,5 +171,5 @@ def test_a_log_printed_to_few_decimals_keeps_rank30s_protection(k):
     t, bl = _planar(_rounded(_text("plate_none_300"), k))
     assert t.text_steps["Xn_mm"] == pytest.approx(10.0 ** -k)
     L = np.abs(t.pn_R[:, :2] - B.c_axis_centre(t)[:2]).max()
-    assert bl.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * 10.0 ** -k * 1e-3 / L, rel=1e-9)
+    assert bl.rank_tol == pytest.approx(B.RANK_QUANTUM_FACTOR * 10.0 ** -k * 1e-3 / L, rel=1e-9, abs=0)
     assert _decisions(bl)[:3] == (55.0, 113, True)

@@ -74,7 +74,7 @@ def test_the_rounding_u95_of_a_plane_covers_a_monte_carlo_of_the_grid_offset(cas
     U = F.rounding_u95(f, P, Q)
     assert U["offset_n"] >= mc[0] and U["tilt_u"] >= mc[1] and U["tilt_v"] >= mc[2], (U, mc)
     if "on the axis" in case:
-        assert U["offset_n"] == pytest.approx(F.ROUNDING_K * Q / np.sqrt(12.0), rel=1e-9)
+        assert U["offset_n"] == pytest.approx(F.ROUNDING_K * Q / np.sqrt(12.0), rel=1e-9, abs=0)
         assert mc[0] == pytest.approx(0.475 * Q, rel=0.02)   # the rectangular's 95 %: the bound is tight
     # the scatter's Student t alone misses it on the axis: the residuals are exactly 0 there
     if case == "wall 3x3 on the axis":
@@ -170,7 +170,7 @@ def test_a_perfect_wall_printed_to_3_decimals_has_the_half_step_u95(monkeypatch)
     log = parse_probe_log(_log_text(P, P, [-1.0, 0.0, 0.0]), "wall.csv")
     r = FE.fit_log_feature(log, "plane")
     k = F.ROUNDING_K / np.sqrt(12.0)
-    assert r.printing_step_mm == pytest.approx((1e-3, 1e-3, 1e-3), rel=1e-12)
+    assert r.printing_step_mm == pytest.approx((1e-3, 1e-3, 1e-3), rel=1e-12, abs=0)
     assert r.u95["offset_n_um"] == pytest.approx(k, rel=1e-9) and r.u95_scatter["offset_n_um"] < 1e-12
     # tilts: sum |gain| over the four touches 4 x 5 / (4 x 25) = 0.2 /mm along y, 4 x 0.5 / (4 x 0.25) = 2 /mm along z
     assert sorted([r.u95["tilt_u_urad"], r.u95["tilt_v_urad"]]) == pytest.approx([k * 200, k * 2000], rel=1e-6)

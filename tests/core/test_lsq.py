@@ -374,8 +374,8 @@ def test_constrained_line_known_answer_by_hand():
         np.testing.assert_allclose(sol.theta, [-1 / 6, 7 / 6], rtol=0, atol=1e-14)
         np.testing.assert_allclose(sol.residuals, [7 / 6, 1.0, -1 / 6, 2 / 3], rtol=0, atol=1e-14)
         assert sol.dof == 3 and sol.sigma_source == "residuals"
-        assert sol.sigma == pytest.approx(np.sqrt(17 / 18), rel=1e-14)
-        assert sol.rms == pytest.approx(np.sqrt(17 / 24), rel=1e-14)
+        assert sol.sigma == pytest.approx(np.sqrt(17 / 18), rel=1e-14, abs=0)
+        assert sol.rms == pytest.approx(np.sqrt(17 / 24), rel=1e-14, abs=0)
         np.testing.assert_allclose(sol.std, np.sqrt(17 / 108) * np.ones(2), rtol=1e-13)
     np.testing.assert_allclose(sol_full_cov := solve(A, y, C=np.array([[1.0, 1.0]]), d=np.array([1.0]),
                                                      covariance="full").cov,
@@ -384,7 +384,7 @@ def test_constrained_line_known_answer_by_hand():
     # unconstrained, the same data: the ordinary line, dof m - n = 2, sigma^2 = RSS / 2 (numpy's lstsq for RSS)
     free = solve(A, y)
     rss = float(np.linalg.lstsq(A, y, rcond=None)[1][0])
-    assert free.dof == 2 and free.sigma == pytest.approx(np.sqrt(rss / 2), rel=1e-13)
+    assert free.dof == 2 and free.sigma == pytest.approx(np.sqrt(rss / 2), rel=1e-13, abs=0)
 
 
 def _near_collinear(eps):
@@ -406,7 +406,12 @@ def test_rank_threshold_either_side_of_rank_tol():
     assert RANK_TOL == 1e-12
     A_ok, r_ok = _near_collinear(2 * np.sqrt(1e-11))
     A_bad, r_bad = _near_collinear(2 * np.sqrt(1e-13))
-    assert r_ok == pytest.approx(1e-11, rel=1e-4) and r_bad == pytest.approx(1e-13, rel=1e-4)
+    assert r_ok == pytest.approx(1e-11, rel=1e-4, abs=0)
+    # approx37: for the lead. abs=1e-12 is pytest's default, written out: it is this check's whole tolerance
+    # (it accepts 0 to 1.1e-12, past RANK_TOL). r_bad, the closed form of the test's own matrix (not core's
+    # figure), is 9.992e-14, 8e-4 off 1e-13 (1 - c cancels: the docstring's 1e-16 absolute), so rel=1e-4 with
+    # abs=0 FAILS; rel=1e-3, abs=0 (the docstring's 0.1 %) passes.
+    assert r_bad == pytest.approx(1e-13, rel=1e-4, abs=1e-12)
     b = np.array([1.0, 2.0, 0.5, 1.5])
     sol = solve(A_ok, b, names=["p", "q"])
     # the fit is b's projection on span(u, v) = (b.u) u + (b.v) v = 2.5 u - v, by hand; through the normal matrix

@@ -134,9 +134,9 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     x = np.arange(12) * 0.050
     u_sg = 0.5 * (0.3e-6 + 1.5e-6 * x)
     u_sg[0] = 0.0  # the reference face: at distance 0 from itself by definition
-    assert u_sg[4] == pytest.approx(0.3e-6, rel=1e-12)
+    assert u_sg[4] == pytest.approx(0.3e-6, rel=1e-12, abs=0)
     u5 = np.sqrt(uA ** 2 + 0.09e-12)
-    assert u5 == pytest.approx(0.305505e-6, rel=1e-6)
+    assert u5 == pytest.approx(0.305505e-6, rel=1e-6, abs=0)
     k5 = student.ppf(0.975, 1568.0)
     k2 = student.ppf(0.975, 2.0)
     assert (k5, k2) == (pytest.approx(1.96148, abs=1e-5), pytest.approx(4.30265, abs=1e-5))
@@ -147,7 +147,7 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     u[4, 0], u[6, 1], u[8, 2] = u5, uA, uA
     U = 2.0 * u
     U[4, 0], U[6, 1], U[8, 2] = k5 * u5, k2 * uA, k2 * uA
-    assert U[4, 0] == pytest.approx(0.599241e-6, rel=1e-6) and U[6, 1] == pytest.approx(0.248414e-6, rel=1e-6)
+    assert U[4, 0] == pytest.approx(0.599241e-6, rel=1e-6, abs=0) and U[6, 1] == pytest.approx(0.248414e-6, rel=1e-6, abs=0)
     np.testing.assert_allclose(cal.E_m, E, rtol=0, atol=1e-16)  # the rounding of x ~ 0.55 m
     np.testing.assert_allclose(cal.u_m, u, rtol=1e-9, atol=1e-18)
     np.testing.assert_allclose(cal.U95_m, U, rtol=1e-9, atol=1e-18)
@@ -156,9 +156,9 @@ def test_reversal_u_and_u95_known_answers_by_hand():
     ug = np.sqrt(uA ** 2 + 0.04e-12)
     nu = 2.0 * (ug / uA) ** 4  # = 2 (13)^2 = 338
     assert nu == pytest.approx(338.0, rel=1e-9)
-    assert g.u_m[4, 0] == pytest.approx(ug, rel=1e-9) and g.u_m[0, 0] == pytest.approx(0.2e-6, rel=1e-12)
-    assert g.U95_m[4, 0] == pytest.approx(student.ppf(0.975, 338.0) * ug, rel=1e-9)
-    assert mfb.step_gauge_u_m(0.2) == pytest.approx(0.3e-6, rel=1e-12)  # the one formula, U(k=2) 0.6 um at 0.2 m
+    assert g.u_m[4, 0] == pytest.approx(ug, rel=1e-9, abs=0) and g.u_m[0, 0] == pytest.approx(0.2e-6, rel=1e-12, abs=0)
+    assert g.U95_m[4, 0] == pytest.approx(student.ppf(0.975, 338.0) * ug, rel=1e-9, abs=0)
+    assert mfb.step_gauge_u_m(0.2) == pytest.approx(0.3e-6, rel=1e-12, abs=0)  # the one formula, U(k=2) 0.6 um at 0.2 m
 
 
 def test_step_gauge_reference_face_has_no_uncertainty_of_its_own():
@@ -175,7 +175,7 @@ def test_step_gauge_reference_face_has_no_uncertainty_of_its_own():
     u = mfb.step_gauge_u_m(x)
     assert u[0] == 0.0
     np.testing.assert_allclose(u[1:], 0.5 * (0.3e-6 + 1.5e-6 * x[1:]), rtol=1e-12, atol=0)
-    assert mfb.step_gauge_u_m(1e-9) == pytest.approx(0.15e-6, rel=1e-6)  # a face 1 nm away: the constant
+    assert mfb.step_gauge_u_m(1e-9) == pytest.approx(0.15e-6, rel=1e-6, abs=0)  # a face 1 nm away: the constant
     E0 = np.zeros((12, 3))
     NR, cmm = _cmm(E0, np.random.default_rng(0), 3, False, sigma=0.0)
     R, _ = _cmm(E0, np.random.default_rng(0), 3, True, sigma=0.0)

@@ -51,7 +51,7 @@ def test_near_singular_where_inv_returns_rounding():
     # other column equilibrated has singular value 1, so the floor is sqrt(RANK_TOL) = 1e-6 (the zero column in its
     # own units): variance 1e12; the seen one's 1 / |x1|^2 = 0.2
     Z = np.array([[1.0, 0.0], [2.0, 0.0]])
-    assert np.diag(normal_inverse(Z)) == pytest.approx([0.2, 1.0 / RANK_TOL], rel=1e-12)
+    assert np.diag(normal_inverse(Z)) == pytest.approx([0.2, 1.0 / RANK_TOL], rel=1e-12, abs=0)
 
 
 def test_bad_input():

@@ -31,8 +31,8 @@ def _rounded(decimals: int, meta: str = "") -> str:
 
 def test_steps_recorded_from_the_digits():
     log = read_positioning_log(SAMPLE)
-    assert log.text_steps == {"target": pytest.approx(1e-3, rel=1e-12), "measured": pytest.approx(1e-6, rel=1e-12)}
-    assert parse_positioning_log(_rounded(2)).text_steps["measured"] == pytest.approx(0.01, rel=1e-12)
+    assert log.text_steps == {"target": pytest.approx(1e-3, rel=1e-12, abs=0), "measured": pytest.approx(1e-6, rel=1e-12, abs=0)}
+    assert parse_positioning_log(_rounded(2)).text_steps["measured"] == pytest.approx(0.01, rel=1e-12, abs=0)
     assert log.lines is not None and log.lines[0] == 9   # 7 metadata lines, the header on line 8
 
 
@@ -41,7 +41,7 @@ def test_number_format_line_is_honoured():
     exact = parse_positioning_log(_rounded(2, "# number_format: shortest round-trip"))
     assert exact.text_steps == {"target": 0.0, "measured": 0.0}
     fixed = parse_positioning_log(_rounded(3, "# number_format: shortest round-trip; decimals measured_mm=3"))
-    assert fixed.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12) and fixed.text_steps["target"] == 0.0
+    assert fixed.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12, abs=0) and fixed.text_steps["target"] == 0.0
     with pytest.raises(PositioningLogError, match="names column 'X_mm', which the header does not have"):
         parse_positioning_log(_rounded(3, "# number_format: shortest round-trip; decimals X_mm=3"))
 
@@ -96,7 +96,7 @@ def test_table_deviation_um_step_in_mm():
         f"{t},{c},{d},{0.1 * c + (1.0 if d == '-' else 0.0):.1f}\n"
         for c in (1, 2, 3) for t in (0, 100, 200) for d in "+-")
     log = parse_table(text)
-    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12)   # 0.1 um printed in um -> 1e-4 mm
+    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12, abs=0)   # 0.1 um printed in um -> 1e-4 mm
     assert log.text_steps["target"] == 1.0
     assert np.all(log.lines == np.arange(2, 20))
 
@@ -123,7 +123,7 @@ def test_the_writer_keeps_the_step_and_declares_memory_logs_exact():
     stepped = parse_positioning_log(format_positioning_log(
         parse_positioning_log(format_positioning_log(mem).replace(
             "# number_format: shortest round-trip", "# number_format: shortest round-trip; decimals measured_mm=2"))))
-    assert stepped.text_steps["measured"] == pytest.approx(0.01, rel=1e-12)
+    assert stepped.text_steps["measured"] == pytest.approx(0.01, rel=1e-12, abs=0)
 
 
 def test_an_ecmc_file_records_its_step():
@@ -133,7 +133,7 @@ def test_an_ecmc_file_records_its_step():
             "REF_DATA_FWD[1,2]=0.0010\nREF_DATA_FWD[2,2]=10.0020\nREF_DATA_BWD[1,1]=-0.0005\n"
             "REF_DATA_BWD[2,1]=10.0000\nREF_DATA_BWD[1,2]=-0.0005\nREF_DATA_BWD[2,2]=10.0000\n")
     log = parse_ecmc_dat(text, "e.dat")
-    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12) and log.text_steps["target"] == 1.0
+    assert log.text_steps["measured"] == pytest.approx(1e-4, rel=1e-12, abs=0) and log.text_steps["target"] == 1.0
     assert list(log.lines[:2]) == [4, 5]   # cycle 1 FWD at targets 0, 10: REF_DATA_FWD[1,1], [2,1]
 
 
@@ -156,7 +156,7 @@ def test_a_cell_with_more_decimals_than_declared_is_refused_naming_its_row():
     more decimals read silently (the probe log refuses it). Now the same refusal in the same words, naming the
     row and the file line; fewer decimals than declared read (``405.77`` is 405.770 to 1 um)."""
     good = parse_positioning_log(_declared(2, 3), source="d.csv")
-    assert good.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12)
+    assert good.text_steps["measured"] == pytest.approx(1e-3, rel=1e-12, abs=0)
     with pytest.raises(PositioningLogError) as e:
         parse_positioning_log(_declared(3, 3, "297.9055"), source="d.csv")
     msg = str(e.value)

@@ -139,7 +139,7 @@ def test_a_full_precision_column_is_written_whole_not_cut_to_12_decimals():
     (before session 33 it was cut to 12 decimals, ``0.300000000000``, another double)."""
     text = ("# format: probe-log/1\n" + _HEAD + "S,T,0.0,0.30000000000000004,0.0,0.0,0.3,0.0,0.0,1.0,0.0,0.0\n")
     log = parse_probe_log(text, "r.csv")
-    assert log.text_steps["X_mm"] == pytest.approx(1e-12)
+    assert log.text_steps["X_mm"] == pytest.approx(1e-12, abs=0)
     out = format_probe_log(log)
     assert ",0.30000000000000004," in out and "decimals" in out and "X_mm=" not in out
     assert parse_probe_log(out, "r2.csv").columns["X_mm"][0] == 0.1 + 0.2 != 0.3
@@ -157,7 +157,7 @@ def test_fit_floors_on_the_declared_1_um_and_not_on_the_same_log_declared_exact(
     assert set(log.columns["X_mm"].tolist()) == {48.0}
     r = FE.fit_log_feature(log, "plane")
     k = F.ROUNDING_K / np.sqrt(12.0)
-    assert r.printing_step_mm == pytest.approx((1e-3,) * 3, rel=1e-12)
+    assert r.printing_step_mm == pytest.approx((1e-3,) * 3, rel=1e-12, abs=0)
     assert r.u95_rounding["offset_n_um"] == pytest.approx(k, rel=1e-9)
     assert r.u95["offset_n_um"] >= r.u95_rounding["offset_n_um"] and r.u95_scatter["offset_n_um"] < 1e-6
     exact = text.replace("; decimals X_mm=3, Y_mm=3, Z_mm=3", "")

@@ -309,7 +309,7 @@ def test_model_error_exact_gate_refuses_noise_a_z_of_3_lets_in(pocket, monkeypat
     assert b.z["EXX"] > 3 and b.p["EXX"] > MODEL_ERROR_P
     assert all(v == 0 for v in b.components.values()) and np.all(b.u_model == 0)
     dof = t0.n - est.n_free
-    assert b.sigma_probe_m == pytest.approx(np.sqrt(res.residuals_m @ res.residuals_m / dof), rel=1e-12)
+    assert b.sigma_probe_m == pytest.approx(np.sqrt(res.residuals_m @ res.residuals_m / dof), rel=1e-12, abs=0)
 
 
 def test_probing_sigma_beside_the_entered_tables_on_a_strong_ripple(pocket):

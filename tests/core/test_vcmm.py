@@ -63,8 +63,8 @@ def test_task_reads_every_field():
     assert set(terms) == {"EXX slope", "EXX constant", "EC0Y constant"}
     assert terms["EXX slope"].bound == pytest.approx(5e-6) and terms["EXX slope"].power == 1
     assert terms["EC0Y constant"].u == pytest.approx(10e-6)   # normal: bound = U at k = 2
-    assert terms["EXX constant"].u == pytest.approx(1e-6 / math.sqrt(3))
-    assert t.mc.tolerance == pytest.approx(5e-8) and t.mc.batch_runs == 50
+    assert terms["EXX constant"].u == pytest.approx(1e-6 / math.sqrt(3), abs=0)
+    assert t.mc.tolerance == pytest.approx(5e-8, abs=0) and t.mc.batch_runs == 50
 
 
 @pytest.mark.parametrize("edit, match", [
@@ -252,7 +252,7 @@ def test_numerical_tolerance_jcgm101_7_9_2():
     """u = 0.35 with 2 significant digits: 35 x 10^-2, delta = 0.005; one digit: delta = 0.05."""
     assert V.numerical_tolerance(0.35, 2) == pytest.approx(0.005)
     assert V.numerical_tolerance(0.35, 1) == pytest.approx(0.05)
-    assert V.numerical_tolerance(2.7e-7, 1) == pytest.approx(5e-8)
+    assert V.numerical_tolerance(2.7e-7, 1) == pytest.approx(5e-8, abs=0)
     assert V.numerical_tolerance(0.0, 1) == 0.0
 
 

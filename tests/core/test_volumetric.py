@@ -297,7 +297,7 @@ def test_lack_of_fit_known_answers_and_bad_input(meas3):
     u0 = np.zeros((12, 3))
     ok = vol.lack_of_fit(res, meas, 0.125e-6, u0)
     assert ok.fits and ok.p > 0.5 and ok.ratio < 0.5 and ok.dof > 1
-    assert ok.rms_m == pytest.approx(res.rms_m, rel=1e-9)
+    assert ok.rms_m == pytest.approx(res.rms_m, rel=1e-9, abs=0)
     bad = vol.lack_of_fit(res, meas, 1e-12, u0)
     assert not bad.fits and bad.p < 1e-12 and bad.ratio > 10
     assert set(bad.as_dict()) >= {"rms_um", "expected_rms_um", "tested_ratio", "dof", "p", "fits"}
@@ -492,7 +492,7 @@ def test_tail_choice_known_answers_and_the_exact_tail_where_a_decision_could_fli
 
     from core.lsq import quadratic_form_sf
 
-    assert vol._tail_lower_bound(np.full(3, 2.0), 2 * 7.814727903251178) == pytest.approx(0.05, rel=1e-12)
+    assert vol._tail_lower_bound(np.full(3, 2.0), 2 * 7.814727903251178) == pytest.approx(0.05, rel=1e-12, abs=0)
     assert vol._tail_lower_bound(np.array([2.0]), 3.0) == chi2.sf(1.5, 1)
     assert vol._tail_lower_bound(np.zeros(2), 1.0) == 0.0 and vol._tail_lower_bound(np.zeros(2), -1.0) == 1.0
     for lam, x in ((np.array([3.0, 1.0]), 5.0), (np.array([1.0] + [0.1] * 30), 10.0),

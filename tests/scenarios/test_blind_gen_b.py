@@ -60,7 +60,7 @@ def test_effect_list_names_kinds_and_truth_fields(campaigns):
         assert len(tr.effect_dq_um) == log.n and not tr.effect_dq_um.flags.writeable
         assert len(tr.workpiece_um) == len(tr.targets) == 60
         assert tr.detectable == (tr.visible_sigmas >= 1.0)
-        assert tr.visible_sigmas == pytest.approx(tr.visible_um / tr.noise_um)
+        assert tr.visible_sigmas == pytest.approx(tr.visible_um / tr.noise_um, abs=0)
         assert 0.2 <= tr.noise_um <= 0.5
         assert 3 <= len(tr.schedule_deg) <= 8
         assert 200 <= log.n <= 500

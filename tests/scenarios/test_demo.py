@@ -376,7 +376,7 @@ def test_raw_error_like_the_self_calibrated_one():
                    {k: v for k, v in zip(ids, wn)})
     plain, form = _raw_error_m(t, truth, 0)
     assert form < 1e-18
-    assert plain == pytest.approx(np.sqrt(np.mean(pattern ** 2) + 0.2e-6 ** 2), rel=1e-12)
+    assert plain == pytest.approx(np.sqrt(np.mean(pattern ** 2) + 0.2e-6 ** 2), rel=1e-12, abs=0)
     assert plain > 10e-6
 
 

@@ -51,8 +51,8 @@ def test_iso230_2_writes_the_contract(tmp_path, capsys):
     assert rep["per_target"] == lib["per_target"]
     # E_VE 0.6 um rectangular, and (session 34) the readings' printed step, 1 nm (6 decimals in mm), 4 u_q on R
     assert rep["uncertainty"]["U_R_um"] == pytest.approx(2 * math.hypot(0.6 / 12 ** 0.5, 4 * 1e-3 / 12 ** 0.5),
-                                                         rel=1e-12)
-    assert rep["printed_step"]["step_mm"] == pytest.approx(1e-6, rel=1e-12) and not rep["printed_step"]["coarse"]
+                                                         rel=1e-12, abs=0)
+    assert rep["printed_step"]["step_mm"] == pytest.approx(1e-6, rel=1e-12, abs=0) and not rep["printed_step"]["coarse"]
     cap = capsys.readouterr()
     assert ["E", f"{lib['E_um']:.3f}", "um", "(U"] in [line.split()[:4] for line in cap.out.splitlines()]
     assert cap.err == ""

@@ -22,9 +22,9 @@ def test_one_seed_through_the_runner_is_the_studys_campaign(tmp_path, capsys):
     res, cv, mis = sc.identify_and_cover(sc.simulate("nmv3000", 20, 0.0))
     rec = {r["budget"]: r for r in doc["records"]}
     assert rec["residuals"]["coverage"] == {b: list(v) for b, v in cv.items()}
-    assert rec["residuals"]["split_misfit_nm"] == pytest.approx(mis * 1e9, rel=1e-12)
+    assert rec["residuals"]["split_misfit_nm"] == pytest.approx(mis * 1e9, rel=1e-12, abs=0)
     s = res.design.slices
-    assert rec["residuals"]["workpiece_u95_median_um"] == pytest.approx(np.median(2 * res.std[s["G"]]) * 1e6, rel=1e-12)
+    assert rec["residuals"]["workpiece_u95_median_um"] == pytest.approx(np.median(2 * res.std[s["G"]]) * 1e6, rel=1e-12, abs=0)
     assert rec["residuals"]["coverage"]["workpiece"] == [60, 92]
     assert all(k == n for k, n in rec["declared"]["coverage"].values())
     pooled = {p["budget"]: p for p in doc["pooled"]}

@@ -102,7 +102,7 @@ def test_measure_delta_L_known_answer():
     meas, true, u = cp.measure_delta_L(m, 0.240, 0.01, 0.9e-6, rng)
     assert abs(true) < 1e-12
     # by hand: 5 touches per end, sigma 0.9 um; artefact U95 = 0.6 + 240/600 = 1.0 um -> u = 0.5 um
-    assert u == pytest.approx(np.sqrt(2 * 0.81 / 5 + 0.25) * 1e-6, rel=1e-12)
+    assert u == pytest.approx(np.sqrt(2 * 0.81 / 5 + 0.25) * 1e-6, rel=1e-12, abs=0)
     assert meas == pytest.approx(true + u * z, abs=1e-15)
 
 
