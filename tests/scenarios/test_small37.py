@@ -1,0 +1,64 @@
+"""Four small things audit37 left (session 37, small37): each a test that failed before its mend.
+
+The probe logs here are written by hand (text), not by vmt's writer."""
+
+from __future__ import annotations
+
+import pytest
+
+from core.exceptions import ProbeLogError
+from core.probelog import parse_probe_log
+from scenarios.cli import main
+from tests.cli_helpers import one_line_error
+
+HEADER = "setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz"
+
+
+def _log(number_format: str | None, x_cell: str = "48.001") -> str:
+    """Three touches of a wall at x = 48 mm, the measured X printed as ``x_cell`` in the first row."""
+    meta = "# format: probe-log/1\n# stylus_r_mm: 2.0\n"
+    if number_format is not None:
+        meta += f"# number_format: {number_format}\n"
+    rows = [f"S1,T0,0.0,{x_cell},-5.000,-5.000,48.0,-5.0,-5.0,1.0,0.0,0.0",
+            "S1,T1,1.0,48.002,0.000,-5.000,48.0,0.0,-5.0,1.0,0.0,0.0",
+            "S1,T2,2.0,47.999,5.000,-5.000,48.0,5.0,-5.0,1.0,0.0,0.0"]
+    return meta + HEADER + "\n" + "\n".join(rows) + "\n"
+
+
+# --- 1. number_format: vmt's decimals list without vmt's words before it ------------------------------------
+
+@pytest.mark.parametrize("value", ["decimals X_mm=3", "Decimals X_mm=3, Y_mm=3",
+                                   "shortest round-trip decimals X_mm=3",        # the ';' forgotten
+                                   "exact; decimals X_mm=3"])
+def test_a_decimals_list_without_vmts_words_is_refused_naming_the_line(value):
+    """Before, ``decimals X_mm=3`` was "other words" and ignored without a word: every column read from its
+    digits (Xn_mm ``48.0`` as printed to 0.1 mm, not exact) and a cell with 6 decimals in X_mm passed, which the
+    same list after ``shortest round-trip;`` refuses. Refused now, as a malformed kinematic_chain,
+    tool_offset_mm or stylus_r_mm is, the message giving the one form vmt reads."""
+    with pytest.raises(ProbeLogError) as e:
+        parse_probe_log(_log(value), "hand.csv")
+    msg = str(e.value)
+    assert msg.startswith("hand.csv: line 3: metadata number_format"), msg
+    assert "'shortest round-trip; decimals COLUMN=K, ...'" in msg, msg
+
+
+def test_the_same_list_after_vmts_words_reads_and_other_words_still_read_from_the_digits():
+    """What is not refused: vmt's form (its step taken), and other words that name no decimals list (a line
+    some other tool wrote: not vmt's, the digits say the precision, as before)."""
+    log = parse_probe_log(_log("shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3"), "ok.csv")
+    assert log.text_steps["X_mm"] == pytest.approx(1e-3) and log.text_steps["Xn_mm"] == 0.0
+    other = parse_probe_log(_log("printf %.3f"), "other.csv")
+    assert other.text_steps["X_mm"] == pytest.approx(1e-3)      # from the digits (3 decimals)
+    assert other.text_steps["Xn_mm"] == pytest.approx(0.1)      # '48.0': one decimal, no declaration
+    # vmt's form holds the cell to it; the refusal above is what keeps the hand form from passing it
+    with pytest.raises(ProbeLogError, match="more decimals"):
+        parse_probe_log(_log("shortest round-trip; decimals X_mm=3", x_cell="48.001234"), "six.csv")
+
+
+def test_check_refuses_the_hand_form_in_one_line(tmp_path, capsys):
+    p = tmp_path / "hand.csv"
+    p.write_text(_log("decimals X_mm=3", x_cell="48.001234"))
+    capsys.readouterr()
+    assert main(["check", str(p)]) == 2
+    one_line_error(capsys, "vmt check: error:", "line 3: metadata number_format", "decimals X_mm=3",
+                   "shortest round-trip; decimals COLUMN=K")
