@@ -62,3 +62,38 @@ def test_check_refuses_the_hand_form_in_one_line(tmp_path, capsys):
     assert main(["check", str(p)]) == 2
     one_line_error(capsys, "vmt check: error:", "line 3: metadata number_format", "decimals X_mm=3",
                    "shortest round-trip; decimals COLUMN=K")
+
+
+# --- 2. the machine file's thermal history: the message names the file's key --------------------------------
+
+THERMAL = """format = "vmt-machine/1"
+base = "vmc-3axis"
+errors = "none"
+[error.EXX]
+thermal = {{ {body} }}
+"""
+
+
+@pytest.mark.parametrize("body, key, words", [
+    ("offset_um_per_K = 1.0, temperature_h = [1.0, 0.0], temperature_K = [0.0, 1.0]",
+     "error.EXX.thermal.temperature_h", "times must be strictly increasing"),
+    ("offset_um_per_K = 1.0, temperature_h = [0.0, 2.0, 2.0], temperature_K = [0.0, 1.0, 2.0]",
+     "error.EXX.thermal.temperature_h", "times must be strictly increasing"),
+    ("offset_um_per_K = 1.0", "error.EXX.thermal.offset_um_per_K", "needs a temperature history"),
+    ("scale_ppm_per_K = 11.5", "error.EXX.thermal.scale_ppm_per_K", "needs a temperature history"),
+])
+def test_a_thermal_history_error_names_the_files_key_and_section(tmp_path, capsys, body, key, words):
+    """Before, `error.EXX.thermal: Drift.temperature_t_s must be strictly increasing` (and `Drift.offset_per_K/
+    scale_per_K need a temperature history`): the simulator's field names, which the file does not have."""
+    p = tmp_path / "m.toml"
+    p.write_text(THERMAL.format(body=body))
+    capsys.readouterr()
+    assert main(["machine", "show", str(p)]) == 2
+    err = one_line_error(capsys, "vmt machine show: error:", f"{p}: {key}: {words}")
+    assert "Drift" not in err and "temperature_t_s" not in err
+
+
+def test_an_increasing_history_still_reads(tmp_path, capsys):
+    p = tmp_path / "m.toml"
+    p.write_text(THERMAL.format(body="offset_um_per_K = 1.0, temperature_h = [0.0, 1.0], temperature_K = [0.0, 2.0]"))
+    assert main(["machine", "show", str(p)]) == 0
