@@ -97,3 +97,24 @@ def test_an_increasing_history_still_reads(tmp_path, capsys):
     p = tmp_path / "m.toml"
     p.write_text(THERMAL.format(body="offset_um_per_K = 1.0, temperature_h = [0.0, 1.0], temperature_K = [0.0, 2.0]"))
     assert main(["machine", "show", str(p)]) == 0
+
+
+# --- 3. `vmt machine serve --host` it cannot listen on: the error alone ------------------------------------
+
+def test_serve_on_a_host_it_cannot_listen_on_says_only_the_error(capsys):
+    """Before, `warning: listening on 999.1.1.1, not only this computer` came first, then the error that it
+    cannot listen: two lines, the first untrue."""
+    capsys.readouterr()
+    assert main(["machine", "serve", "--host", "999.1.1.1", "--port", "0", "--stop-after-s", "0.2"]) == 2
+    err = one_line_error(capsys, "vmt machine serve: error: --host 999.1.1.1 --port 0: cannot listen")
+    assert "warning" not in err
+
+
+def test_serve_on_another_address_still_warns_once_it_listens(capsys):
+    """127.0.0.2 is this computer's loopback on Linux, but not one of the names serve takes as local: the
+    warning is still said (after the listen succeeded), then the emulator's line."""
+    capsys.readouterr()
+    assert main(["machine", "serve", "--host", "127.0.0.2", "--port", "0", "--stop-after-s", "0.2"]) == 0
+    cap = capsys.readouterr()
+    assert cap.err == "vmt machine: warning: listening on 127.0.0.2, not only this computer\n", cap.err
+    assert "GRBL emulator of axes XYZ on grbl://127.0.0.2:" in cap.out, cap.out
