@@ -130,3 +130,39 @@ def test_serve_on_another_address_still_warns_once_it_listens(capsys):
     cap = capsys.readouterr()
     assert cap.err == "vmt machine: warning: listening on 127.0.0.2, not only this computer\n", cap.err
     assert "GRBL emulator of axes XYZ on grbl://127.0.0.2:" in cap.out, cap.out
+
+
+# --- 4. `vmt check` of a plan: no time, what the plan is ---------------------------------------------------
+
+def _plan() -> str:
+    """Three touches planned in two set-ups (two targets; T0 in both), every measured cell empty."""
+    rows = ["S1,T0,,,,,48.0,-5.0,-5.0,1.0,0.0,0.0",
+            "S1,T1,,,,,48.0,5.0,-5.0,1.0,0.0,0.0",
+            "S2,T0,,,,,48.0,-5.0,-5.0,1.0,0.0,0.0"]
+    return "# format: probe-log/1\n# stylus_r_mm: 2.0\n" + HEADER + "\n" + "\n".join(rows) + "\n"
+
+
+def test_check_of_a_plan_says_what_it_plans_and_no_time(tmp_path, capsys):
+    """Before: `touches 3 planned (nothing measured)   set-ups 2   targets 2` and `time 0.0 s`, the span of no
+    touches. A plan has no time: its summary says how many touches in how many set-ups, and that its X, Y, Z are
+    the nominals."""
+    p = tmp_path / "plan.csv"
+    p.write_text(_plan())
+    capsys.readouterr()
+    assert main(["check", str(p)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out == [f"{p}: valid probe-log/1 plan",
+                   "  plan     3 touches in 2 set-ups, 2 targets: nothing measured yet",
+                   "  X        48.000 .. 48.000 mm (nominal)",
+                   "  Y        -5.000 .. 5.000 mm (nominal)",
+                   "  Z        -5.000 .. -5.000 mm (nominal)"], out
+
+
+def test_check_of_a_campaign_still_says_its_time(tmp_path, capsys):
+    p = tmp_path / "log.csv"
+    p.write_text(_log(None))
+    capsys.readouterr()
+    assert main(["check", str(p)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1] == "  touches  3 (3 ok)   set-ups 1   targets 3" and out[2] == "  time     2.0 s", out
+    assert out[3] == "  X        47.999 .. 48.002 mm", out                   # measured, not nominal
