@@ -140,15 +140,15 @@ def parse_number_format(value: str, header, src: str, ln: int | None = None,
     """``(exact, fixed)`` of a ``number_format`` value: ``exact`` True for vmt's own words
     (:data:`NUMBER_FORMAT_EXACT`, any case), ``fixed`` the columns it names printed to fixed decimals
     (:data:`NUMBER_FORMAT_DECIMALS`; name -> decimals). Other words: ``(False, {})``, not taken (the digits say
-    the precision, as before), unless they name :data:`NUMBER_FORMAT_DECIMALS` (vmt's list without vmt's words
-    before it: refused, session 37). Raises :class:`~core.exceptions.ProbeLogError` (one line naming the file and the
+    the precision, as before), unless they hold vmt's list, ``decimals NAME=K`` (without vmt's words before it:
+    refused, session 37; words without such a list, ``six decimals``, are still not taken). Raises :class:`~core.exceptions.ProbeLogError` (one line naming the file and the
     metadata line ``ln``) for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
     column ``header`` lacks or one of ``text_columns``, a column named twice, a K that is not a whole number from
     0 to :data:`TEXT_DECIMALS_MAX`."""
     head, sep, tail = value.strip().partition(";")
     at = f"{src}: " + (f"line {ln}: " if ln is not None else "") + f"metadata {NUMBER_FORMAT_KEY}"
     if head.strip().lower() != NUMBER_FORMAT_EXACT:
-        if re.search(rf"\b{NUMBER_FORMAT_DECIMALS}\b", value, re.IGNORECASE):
+        if re.search(rf"\b{NUMBER_FORMAT_DECIMALS}\s+[^\s=,;]+\s*=", value, re.IGNORECASE):
             # session 37 (audit37): vmt's list without vmt's words before it (``decimals X_mm=3``) was other
             # words, ignored without a word: every column then read from its digits, so a cell with more decimals
             # than the line says passed and the columns the line leaves exact read as printed to a step. Refused,

@@ -47,6 +47,8 @@ def test_the_same_list_after_vmts_words_reads_and_other_words_still_read_from_th
     some other tool wrote: not vmt's, the digits say the precision, as before)."""
     log = parse_probe_log(_log("shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3"), "ok.csv")
     assert log.text_steps["X_mm"] == pytest.approx(1e-3) and log.text_steps["Xn_mm"] == 0.0
+    prose = parse_probe_log(_log("six decimals"), "prose.csv")                # words, no list: not vmt's
+    assert prose.text_steps["Xn_mm"] == pytest.approx(0.1)
     other = parse_probe_log(_log("printf %.3f"), "other.csv")
     assert other.text_steps["X_mm"] == pytest.approx(1e-3)      # from the digits (3 decimals)
     assert other.text_steps["Xn_mm"] == pytest.approx(0.1)      # '48.0': one decimal, no declaration
