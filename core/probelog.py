@@ -141,8 +141,9 @@ def parse_number_format(value: str, header, src: str, ln: int | None = None,
     (:data:`NUMBER_FORMAT_EXACT`, any case), ``fixed`` the columns it names printed to fixed decimals
     (:data:`NUMBER_FORMAT_DECIMALS`; name -> decimals). Other words: ``(False, {})``, not taken (the digits say
     the precision, as before), unless they hold vmt's list, ``decimals NAME=K`` (without vmt's words before it:
-    refused, session 37; words without such a list, ``six decimals``, are still not taken). Raises :class:`~core.exceptions.ProbeLogError` (one line naming the file and the
-    metadata line ``ln``) for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
+    refused, session 37; words without such a list, ``six decimals``, are still not taken). Raises
+    :class:`~core.exceptions.ProbeLogError` (one line naming the file and the metadata line ``ln``) for that and
+    for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
     column ``header`` lacks or one of ``text_columns``, a column named twice, a K that is not a whole number from
     0 to :data:`TEXT_DECIMALS_MAX`."""
     head, sep, tail = value.strip().partition(";")
