@@ -140,16 +140,27 @@ def parse_number_format(value: str, header, src: str, ln: int | None = None,
     """``(exact, fixed)`` of a ``number_format`` value: ``exact`` True for vmt's own words
     (:data:`NUMBER_FORMAT_EXACT`, any case), ``fixed`` the columns it names printed to fixed decimals
     (:data:`NUMBER_FORMAT_DECIMALS`; name -> decimals). Other words: ``(False, {})``, not taken (the digits say
-    the precision, as before). Raises :class:`~core.exceptions.ProbeLogError` (one line naming the file and the
-    metadata line ``ln``) for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
+    the precision, as before), unless they hold vmt's list, ``decimals NAME=K`` (without vmt's words before it:
+    refused, session 37; words without such a list, ``six decimals``, are still not taken). Raises
+    :class:`~core.exceptions.ProbeLogError` (one line naming the file and the metadata line ``ln``) for that and
+    for vmt's words followed by a list that does not hold: not ``decimals NAME=K, ...``, a
     column ``header`` lacks or one of ``text_columns``, a column named twice, a K that is not a whole number from
     0 to :data:`TEXT_DECIMALS_MAX`."""
     head, sep, tail = value.strip().partition(";")
+    at = f"{src}: " + (f"line {ln}: " if ln is not None else "") + f"metadata {NUMBER_FORMAT_KEY}"
     if head.strip().lower() != NUMBER_FORMAT_EXACT:
+        if re.search(rf"\b{NUMBER_FORMAT_DECIMALS}\s+[^\s=,;]+\s*=", value, re.IGNORECASE):
+            # session 37 (audit37): vmt's list without vmt's words before it (``decimals X_mm=3``) was other
+            # words, ignored without a word: every column then read from its digits, so a cell with more decimals
+            # than the line says passed and the columns the line leaves exact read as printed to a step. Refused,
+            # as a malformed kinematic_chain, tool_offset_mm or stylus_r_mm is: the line names vmt's list, so it
+            # is meant as vmt's, and its one written form is the one taken.
+            raise ProbeLogError(f"{at} {_shown(value, 60)}: a '{NUMBER_FORMAT_DECIMALS}' list goes after vmt's "
+                                f"words: '{NUMBER_FORMAT_EXACT}; {NUMBER_FORMAT_DECIMALS} COLUMN=K, ...' (the "
+                                "columns printed to K decimals, every other number exact)")
         return False, {}
     if not sep:
         return True, {}
-    at = f"{src}: " + (f"line {ln}: " if ln is not None else "") + f"metadata {NUMBER_FORMAT_KEY}"
     word, _, items = tail.strip().partition(" ")
     if word.lower() != NUMBER_FORMAT_DECIMALS or not items.strip():
         raise ProbeLogError(f"{at} {_shown(value, 60)}: after '{NUMBER_FORMAT_EXACT};' expected "

@@ -692,8 +692,15 @@ class _Reader(KeyReader):
             tk = self.numbers(f"{key}.temperature_K", t.get("temperature_K", []))
             if len(th) != len(tk):
                 self.fail(f"{key}.temperature_K", f"{counted(len(tk), 'temperature')} for {counted(len(th), 'time')}")
+            # the file's keys, not Drift's fields (session 37, audit37: the error named Drift.temperature_t_s)
+            if any(b <= a for a, b in zip(th, th[1:])):
+                self.fail(f"{key}.temperature_h", "times must be strictly increasing (h)")
             kw["temperature_t_s"] = tuple(v * H for v in th)
             kw["temperature_K"] = tk
+        else:
+            for k in (f"offset_{U}_per_K", "scale_ppm_per_K"):
+                if t.get(k):
+                    self.fail(f"{key}.{k}", "needs a temperature history (temperature_h and temperature_K)")
         try:
             return Drift(**kw)
         except ConfigError as e:

@@ -52,13 +52,20 @@ def run(args) -> int:
         write_json_atomic(args.json, s, special=True)
     kind = "plan" if s["plan"] else "campaign"
     print(f"{args.log}: valid probe-log/1 {kind}")
-    counted = f"{s['touches']} planned (nothing measured)" if s["plan"] else f"{s['touches']} ({s['ok']} ok)"
-    print(f"  touches  {counted}   set-ups {s['setups']}   targets {s['targets']}")
-    print(f"  time     {s['time_span_s']:.1f} s")
+    from core.exceptions import counted
+
+    if s["plan"]:
+        # a plan has no time and no readings (session 37, audit37: it printed `time 0.0 s`, the span of no
+        # touches); its X, Y, Z are the nominal tip centres
+        print(f"  plan     {counted(s['touches'], 'touch')} in {counted(s['setups'], 'set-up')}, "
+              f"{counted(s['targets'], 'target')}: nothing measured yet")
+    else:
+        print(f"  touches  {s['touches']} ({s['ok']} ok)   set-ups {s['setups']}   targets {s['targets']}")
+        print(f"  time     {s['time_span_s']:.1f} s")
     for ax in ("X", "Y", "Z"):
         r = s[f"{ax}_range_mm"]
         if r:
-            print(f"  {ax}        {r[0]:.3f} .. {r[1]:.3f} mm")
+            print(f"  {ax}        {r[0]:.3f} .. {r[1]:.3f} mm" + (" (nominal)" if s["plan"] else ""))
     for ax in ("A", "B", "C"):
         v = s.get(f"{ax}_values_deg")
         if v:
@@ -70,8 +77,6 @@ def run(args) -> int:
     rep = s["repeated"]
     if rep["touches"]:
         ex = ", ".join(f"{e['setup']}/{e['target']} x{e['times']}" for e in rep["examples"])
-        from core.exceptions import counted
-
         n = rep["touches"]
         print(f"  repeated {counted(n, 'touch')} {'repeats' if n == 1 else 'repeat'} an earlier (setup, target) "
               f"({counted(rep['pairs'], 'pair')}, "

@@ -140,14 +140,15 @@ def run_serve(args) -> int:
                               travel=parse_limits(args.limits) if args.limits else None)
     emu = GrblEmulator(machine, config, tool_offset_mm=J)
     runner = EmulatorRunner(emu, time_scale=args.time_scale)
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
-        print(f"vmt machine: warning: listening on {args.host}, not only this computer",
-              file=sys.stderr)
     try:
         tcp = TcpServer(runner, args.host, args.port, idle_timeout_s=args.idle_timeout,
                         on_connect=args.on_connect).start()
     except OSError as e:
         raise ConfigError(f"--host {args.host} --port {args.port}: cannot listen ({e.strerror})") from None
+    # said once it listens (session 37, audit37: said before, it preceded the error of a host it cannot listen on)
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"vmt machine: warning: listening on {args.host}, not only this computer",
+              file=sys.stderr)
     ptys = PtyServer(runner).start() if args.pty else None
     print(f"vmt machine: GRBL emulator of axes {axes} on {tcp.url}"
           + ("" if J is None else f", the probe's tip centre J = ({', '.join(f'{v:g}' for v in J)}) mm from the "

@@ -85,11 +85,17 @@ def test_the_declaration_holds_with_the_text_steps_switched_off(monkeypatch):
 
 
 def test_other_words_before_the_list_are_not_taken():
-    """Only vmt's own words declare: another value of the key, a list after it or not, leaves the digits to say
-    the step (as before session 33)."""
-    text = format_probe_log(_wall()).replace("shortest round-trip; decimals", "six decimals; decimals")
-    log = parse_probe_log(text, "o.csv")
+    """Only vmt's own words declare: another value of the key leaves the digits to say the step (as before
+    session 33). Since session 37 (small37) vmt's list after other words is refused, not read as other words: the
+    line names vmt's list, so it is meant as vmt's, written in a form vmt does not read (a malformed
+    kinematic_chain, tool_offset_mm or stylus_r_mm is refused too); tests/scenarios/test_small37.py."""
+    other = format_probe_log(_wall()).replace("shortest round-trip; decimals X_mm=3, Y_mm=3, Z_mm=3",
+                                              "six decimals")
+    log = parse_probe_log(other, "o.csv")
     assert log.text_steps["X_mm"] == 1e-3 and log.text_steps["Xn_mm"] == pytest.approx(0.1)
+    listed = format_probe_log(_wall()).replace("shortest round-trip; decimals", "six decimals; decimals")
+    with pytest.raises(ProbeLogError, match="a 'decimals' list goes after vmt's words"):
+        parse_probe_log(listed, "o.csv")
 
 
 _HEAD = "setup,target,t_s,X_mm,Y_mm,Z_mm,Xn_mm,Yn_mm,Zn_mm,nx,ny,nz\n"

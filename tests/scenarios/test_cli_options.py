@@ -526,7 +526,8 @@ def test_simulate_plan_only_says_nothing_was_measured(tmp_path, capsys):
     assert "plan of 368 touches (nothing measured)" in out and " ok)" not in out and "errors" not in out
     assert main(["check", str(plan)]) == 0
     out = capsys.readouterr().out
-    assert "touches  368 planned (nothing measured)" in out and "ok)" not in out
+    assert "plan     368 touches in 4 set-ups, 92 targets: nothing measured yet" in out and "ok)" not in out
+    assert "time " not in out                                  # a plan has no time (small37)
 
 
 def test_errors_name_things_in_english(tmp_path, capsys):
