@@ -163,6 +163,29 @@ def same_tool_offset(a, b) -> bool:
 #: ``machine`` (the virtual machine's tool).
 TOOL_OFFSET_FROM = ("log", "log and option", "option", "none", "machine", "machine and log")
 
+#: How a command says where its J came from, one of :data:`TOOL_OFFSET_FROM` (``none`` has its own sentence in
+#: :func:`tool_offset_said`).
+TOOL_OFFSET_FROM_WORDS = {"log": "the log's tool_offset_mm line",
+                          "log and option": "the log's tool_offset_mm line and --tool-offset-mm",
+                          "option": "--tool-offset-mm (the log has no tool_offset_mm line)",
+                          "machine": "the machine's [tool] offset_mm",
+                          "machine and log": "the machine's [tool] offset_mm and the plan's tool_offset_mm line"}
+
+
+def tool_offset_said(J_mm, J_from: str, placed: str) -> str:
+    """The one line that says which probe offsets J a command used and where they came from, in the words of
+    ``vmt identify``'s (``probe offsets J = (x, y, z) mm, from ...: <placed> at the axis positions reading + J``).
+
+    ``J_mm`` (3,) mm or None (unknown: ``J_from`` ``"none"``); ``J_from`` one of :data:`TOOL_OFFSET_FROM`;
+    ``placed`` what sits at the axis positions (``"the tables"``, ``"the runs"``)."""
+    if J_from not in TOOL_OFFSET_FROM:
+        raise ValueError(f"tool_offset_said: J_from {J_from!r} is not one of {', '.join(TOOL_OFFSET_FROM)}")
+    if J_mm is None:
+        return (f"probe offsets J unknown (no tool_offset_mm line in the log, no --tool-offset-mm): {placed} at the "
+                "readings, the state's probe_offsets_J_mm null")
+    J = f"({', '.join(f'{v:g}' for v in J_mm)}) mm"
+    return f"probe offsets J = {J}, from {TOOL_OFFSET_FROM_WORDS[J_from]}: {placed} at the axis positions reading + J"
+
 
 def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, float] | None, str]:
     """``(J mm or None, where from)`` for a command that reads the probe log ``log`` with ``--tool-offset-mm``

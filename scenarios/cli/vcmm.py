@@ -96,6 +96,7 @@ def run(args) -> int:
     from scenarios.cli.reading import read_probe
     from core.vcmm import load_task
     from scenarios.cli.guard import progress_line, said
+    from scenarios.cli.options import tool_offset_said
     from scenarios.vcmm import prepare, study
     from sim.machinefile import truth_machine
 
@@ -149,6 +150,7 @@ def run(args) -> int:
     rep["tool_offset"] = J_said
     print(f"{args.plan}: {rep['touches']} touches on {rep['machine']}, {rep['runs']} runs "
           f"({rep['runs_total']} with the budget, {rep['runs_per_s']:.1f} runs/s), seed {args.seed}")
+    print(tool_offset_said(J_said["J_mm"], J_said["from"], "the runs"))   # identify's words (session 37)
     for m in rep["measurands"]:
         tail = "" if m["converged"] else "  NOT CONVERGED (max_runs reached)"
         d = _u_decimals(m.get("tolerance"))
