@@ -71,7 +71,7 @@ def run(args) -> int:
     from scenarios.cli.guard import progress_line
 
     with progress_line(f"simulate {args.artefact}: % of the work") as bar:
-        log, cfg, errors = _campaign(args, bar)
+        log, cfg, errors, note = _campaign(args, bar)
     from scenarios.cli.guard import said
 
     from core.exceptions import counted
@@ -83,11 +83,14 @@ def run(args) -> int:
     else:
         print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
               f"machine {cfg.name}, errors {errors}, {setups}")
+    if note and not args.plan_only:   # the J the touches were simulated with changes them: said where assumed
+        print(note)
     return 0
 
 
 def _campaign(args, bar):
-    """Simulate the campaign of ``args`` and write its log; return (log, machine config, errors label)."""
+    """Simulate the campaign of ``args`` and write its log; return (log, machine config, errors label, the
+    assumed tool offset's line or None: :func:`sim.machinefile.tool_offset_note`)."""
     from core.exceptions import ConfigError
 
     for name in POSITIONING_ONLY:
@@ -103,7 +106,7 @@ def _campaign(args, bar):
     from sim.campaign import simulate_campaign
     from sim.catalog import CATALOG
     from sim.machine import Machine
-    from sim.machinefile import errors_label, truth_machine
+    from sim.machinefile import errors_label, tool_offset_note, truth_machine
 
     rec = CATALOG[args.artefact]
     name = args.machine or rec.default_machine
@@ -148,7 +151,7 @@ def _campaign(args, bar):
     bar(SIMULATE_SHARES[1], 100)
     write_probe_log(args.out, log, special=True)
     bar(SIMULATE_SHARES[2], 100)
-    return log, cfg, errors
+    return log, cfg, errors, tool_offset_note(spec)
 
 
 # --------------------------------------------------------------------------- vmt simulate positioning

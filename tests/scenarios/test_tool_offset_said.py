@@ -57,6 +57,9 @@ def test_identify_and_vcmm_say_J_in_one_sentence():
     assert tool_offset_said((0, 0, 150), "machine", "the runs") == (
         "probe offsets J = (0, 0, 150) mm, from the machine's [tool] offset_mm: the runs at the axis positions "
         "reading + J")
+    assert tool_offset_said((0, 0, 150), "assumed", "the runs") == (
+        "probe offsets J = (0, 0, 150) mm, tool offset not given: J = (0, 0, 150) mm assumed: the runs at the axis "
+        "positions reading + J")
     with pytest.raises(ValueError, match="'nowhere' is not one of"):
         tool_offset_said(J, "nowhere", "the runs")
 
@@ -72,9 +75,24 @@ def test_identify_says_J_in_the_shared_words():
         assert _tool_offset_said(J, src) == tool_offset_said(J, src, "the tables")
 
 
-def test_vcmm_says_J_in_one_line(tmp_path, capsys):
-    """One line naming J and whence on the terminal (before session 37 none: identify said it, vcmm did not);
-    the JSON's ``tool_offset`` the same J."""
+def test_a_machine_file_without_tool_says_J_is_assumed(tmp_path):
+    from sim.machinefile import DEFAULT_OFFSET_MM, loads, tool_offset_note, truth_machine
+
+    spec = loads(NO_TOOL, "my-vmc.toml")
+    assert not spec.tool_offset_given
+    assert tuple(v * 1e3 for v in spec.config.J_m) == pytest.approx(DEFAULT_OFFSET_MM, abs=1e-12)
+    assert tool_offset_note(spec) == "tool offset not given: J = (0, 0, 150) mm assumed"
+    # a file that gives it, a built-in (its shipped file gives it), a file based on a built-in: nothing assumed
+    given = loads(NO_TOOL + "\n[tool]\noffset_mm = [0, 0, 150]\n", "g.toml")
+    assert given.tool_offset_given and tool_offset_note(given) is None
+    assert tool_offset_note(truth_machine("vmc-3axis", "none")) is None
+    assert tool_offset_note(loads('base = "vmc-3axis"\nname = "b"\n', "b.toml")) is None
+
+
+def test_vcmm_says_J_and_whether_it_was_assumed(tmp_path, capsys):
+    """One line naming J and whence on the terminal (before session 37 none: identify said it, vcmm did not); the
+    JSON's ``tool_offset`` the same J; a machine file without [tool] says "tool offset not given: J = (0, 0, 150) mm
+    assumed" in both (before, nothing: J silently the default)."""
     out = tmp_path / "v.json"
     capsys.readouterr()
     assert main(VCMM + ["--machine", "vmc-3axis", "--json", str(out)]) == 0
@@ -83,3 +101,29 @@ def test_vcmm_says_J_in_one_line(tmp_path, capsys):
                      "positions reading + J"]
     assert json.loads(out.read_text())["tool_offset"] == {"J_mm": [0.0, 0.0, 150.0], "from": "machine"}
 
+    m = tmp_path / "my-vmc.toml"
+    m.write_text(NO_TOOL)
+    out2 = tmp_path / "v2.json"
+    assert main(VCMM + ["--machine", str(m), "--json", str(out2)]) == 0
+    said = capsys.readouterr().out
+    lines = [ln for ln in said.splitlines() if "probe offsets J" in ln]
+    assert lines == ["probe offsets J = (0, 0, 150) mm, tool offset not given: J = (0, 0, 150) mm assumed: the runs "
+                     "at the axis positions reading + J"], said
+    assert json.loads(out2.read_text())["tool_offset"] == {
+        "J_mm": [0.0, 0.0, 150.0], "from": "assumed", "note": "tool offset not given: J = (0, 0, 150) mm assumed"}
+
+
+def test_simulate_and_machine_say_the_assumed_J(tmp_path, capsys):
+    """``vmt simulate`` (the touches it writes are simulated with J) and ``vmt machine`` (what the file holds) say
+    the assumed J on a file without [tool]; on a built-in they say nothing of it."""
+    m = tmp_path / "my-vmc.toml"
+    m.write_text(NO_TOOL)
+    capsys.readouterr()
+    assert main(["machine", "show", str(m)]) == 0
+    out = capsys.readouterr().out
+    assert ("tool offset J (gauge point - tip centre): (0, 0, 150) mm (tool offset not given: J = (0, 0, 150) mm "
+            "assumed)") in out, out
+    assert main(["simulate", "freeform", "--machine", str(m), "--out", str(tmp_path / "s.csv"), "--seed", "1"]) == 0
+    assert "tool offset not given: J = (0, 0, 150) mm assumed\n" in capsys.readouterr().out
+    assert main(["simulate", "freeform", "--machine", "vmc-3axis", "--out", str(tmp_path / "b.csv"), "--seed", "1"]) == 0
+    assert "tool offset not given" not in capsys.readouterr().out
