@@ -2494,7 +2494,8 @@ def bar_sag_plausible(vals, u95):
 #: - values of the harmonics that are rounding (``sin 2 phi`` at multiples of 90 deg, 1e-16) are 0, and a column
 #:   below :data:`STYLUS_LOBING_ZERO_REL` of the largest is zero: the engine normalised such columns to unit length
 #:   (``_directions_beside``) and fitted them as directions of pure rounding (6 of the 12 it kept on seed 1), which
-#:   gave two ``pretravel_pv_um`` U95s wider than 0..50 um.
+#:   gave two ``pretravel_pv_um`` U95s wider than 0..50 um. Its exactly-zero columns want
+#:   ``core.discover.MAGNITUDE_ZERO_COLUMN_UNSEEN`` on beside it (switch the two together).
 #:
 #: Neither makes a stylus's pattern determined on the MFB plans: beside the baseline the data see 5 combinations of
 #: the 7 styli's 49 coefficients on seed 1 (12 with the rounding), each across styli (one stylus's pre-travel at an

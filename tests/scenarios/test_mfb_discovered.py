@@ -102,7 +102,8 @@ def _each_missing_value_said(f):
 
 
 def test_mended_lobing_columns_drop_the_rounding_directions(lobing, monkeypatch):
-    """core.causes.STYLUS_LOBING_MENDED (off in the engine; on here): the axial touches carry no lobes and the
+    """core.causes.STYLUS_LOBING_MENDED and core.discover.MAGNITUDE_ZERO_COLUMN_UNSEEN (off in the engine; on
+    here): the axial touches carry no lobes and the
     columns of rounding (sin 2 phi at multiples of 90 deg) are zero, so the term the engine fits has no direction of
     pure rounding. Known figures of this campaign (as of mfb-3axis seed 1, the same plan): without the mend the term
     is fitted on 12 directions of its 49, beside 12 columns of norm below 1e-6 of the largest (rounding, normalised
@@ -115,6 +116,7 @@ def test_mended_lobing_columns_drop_the_rounding_directions(lobing, monkeypatch)
 
     def kept(on):
         monkeypatch.setattr(causes, "STYLUS_LOBING_MENDED", on)
+        monkeypatch.setattr(D, "MAGNITUDE_ZERO_COLUMN_UNSEEN", on)   # (the mend's zero columns need it)
         seen = []
         orig = D._magnitudes
 
@@ -137,8 +139,8 @@ def test_mended_lobing_columns_drop_the_rounding_directions(lobing, monkeypatch)
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         rep_on, k_on, tiny_on = kept(True)
-    # a magnitude that needs an exactly-zero column is unseen, said without g / 1e-300 (whose norm overflowed: one
-    # "overflow encountered in dot" per discovery before the guard in core.discover._magnitudes)
+    # a magnitude that needs an exactly-zero column is unseen, said without g / 1e-300 (whose norm overflows: one
+    # "overflow encountered in dot" per discovery with MAGNITUDE_ZERO_COLUMN_UNSEEN off)
     assert not [x for x in w if "overflow" in str(x.message)], [str(x.message) for x in w]
     assert tiny_off == 12 and tiny_on == 0, (tiny_off, tiny_on)
     assert (k_off, k_on) == (12, 5), (k_off, k_on)
