@@ -6114,9 +6114,9 @@ MAGNITUDE_NOT_SEEN_NOTE = True
 
 
 #: Whether a magnitude whose gradient touches an exactly-zero column of its cause is unseen, said so at once
-#: (:func:`_magnitudes`). Off, the weak test divides the gradient by the column norms floored at 1e-300: a gradient
-#: of 1e6 or more there makes the norm overflow to inf ("overflow encountered in dot") and the magnitude passes
-#: the test, reported from coefficients the data never saw. Seen with core.causes.STYLUS_LOBING_MENDED on (its
+#: (:func:`_magnitudes`). Off, the weak test divides the gradient by the column norms floored at 1e-300: any
+#: gradient above about 1e-146 there makes the norm overflow to inf ("overflow encountered in dot") and the
+#: magnitude passes the test, reported from coefficients the data never saw. Seen with core.causes.STYLUS_LOBING_MENDED on (its
 #: exactly-zero columns: once per lobing campaign, no figure of session 37's MFB study moved); it may move a
 #: reading wherever another cause has such a column, unmeasured on the other generators: off while the lead's
 #: blind check runs (session 37).
