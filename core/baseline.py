@@ -1414,11 +1414,47 @@ _POSITIONING_WORDS = ((r"\bset-ups\b", "cycles"), (r"\bset-up\b", "cycle"), (r"\
                       (r"\btouch\b", "reading"))
 
 
+#: What a positioning baseline takes for the time when its log has no clock (no ``t_s``, or one with an empty cell):
+#: the reading order. Said in its ``info["time"]`` (the report's ``baseline.time``) and in the words of the
+#: covariates built on it (:func:`positioning`).
+NO_CLOCK_TIME = "the reading order (the log has no clock)"
+#: The unit a finding's time figure is in when the log has no clock: a key ending in ``_s`` (``time_constant_s``)
+#: counts readings, and is named so in the report (``time_constant_readings``: :func:`positioning_report`).
+NO_CLOCK_TIME_SUFFIX = "_readings"
+
+
+def _no_clock_keys(rep: dict) -> dict:
+    """The report ``rep`` of a positioning log without a clock with its findings' time figures named in readings:
+    every parameter key ending in ``_s`` (the engine read the reading order as seconds) renamed ``..._readings``,
+    wherever the finding names it (its params, U95, evidence keys, lists and words), and a rival named "a smooth
+    term in time" said to be the reading order's."""
+    keys = {k for f in rep.get("findings") or () for k in (f.get("params") or {}) if k.endswith("_s")}
+    new = {k: k[:-2] + NO_CLOCK_TIME_SUFFIX for k in keys}
+    pat = re.compile(r"\b(" + "|".join(re.escape(k) for k in sorted(keys)) + r")\b")
+
+    def ren(o):
+        if isinstance(o, dict):
+            return {new.get(k, k) if isinstance(k, str) else k: ren(v) for k, v in o.items()}
+        if isinstance(o, list):
+            return [ren(v) for v in o]
+        if isinstance(o, tuple):
+            return tuple(ren(v) for v in o)
+        if isinstance(o, str):   # (a rival named by its covariate: "a smooth term in time" is the order's)
+            return re.sub(r"\bterm in time\b", "term in time (the reading order here)",
+                          pat.sub(lambda m: new[m.group(1)], o) if keys else o)
+        return o
+    return {**rep, "findings": ren(rep["findings"])}
+
+
 def positioning_report(rep: dict, bl: "Baseline") -> dict:
     """A positioning baseline's discovery report in its own words and units (:data:`POSITIONING_REPORT_WORDS`,
-    :func:`positioning_report_units`); any other report as it is."""
+    :func:`positioning_report_units`); any other report as it is. A log without a clock (``info["time"]``,
+    :data:`NO_CLOCK_TIME`): its findings' time figures named in readings (:func:`_no_clock_keys`; the diagnosis
+    already says "the reading order", :func:`positioning`'s words)."""
     if bl.kind != "positioning":
         return rep
+    if (bl.info or {}).get("time") == NO_CLOCK_TIME:
+        rep = _no_clock_keys(rep)
     if POSITIONING_REPORT_WORDS:
         def words(o):
             if isinstance(o, dict):
@@ -1448,7 +1484,9 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
     deviation_m : (n,) float
         ``x_ij = P_ij - P_i`` (ISO 230-2), m.
     t_s : (n,) float, optional
-        Time of each reading; the reading order when absent.
+        Time of each reading; the reading order when absent (said: ``info["time"]`` is then
+        :data:`NO_CLOCK_TIME`, the time covariates' words name it, and the report's time figures are in
+        readings, :func:`positioning_report`).
     temps : dict name -> (n,) float, optional
         Temperature sensors (``temp_<name>_C``).
     rotary : bool
@@ -1505,7 +1543,10 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
     else:
         ids = tuple(f"P={k[0] * 1e-6:g}mm{'+' if k[1] > 0 else '-'}" for k in keys)
     modes = np.ones((n, 1))
-    covs = [Covariate("time", t, "smooth", 6, (0,), "time", "time"),
+    clock = t_s is not None
+    # (without a clock the time is the reading order, and the words say so: "residuals follow time" read as a clock)
+    tw = "time" if clock else f"time, here {NO_CLOCK_TIME}"
+    covs = [Covariate("time", t, "smooth", 6, (0,), tw, "time"),
             Covariate("cycle", cyc_idx, "categorical", 0, (0,), "the cycle", "time"),
             Covariate("position", x, "smooth", 6, (0,), "the target position", "position"),
             Covariate("position_by_cycle", np.column_stack([f * (cyc_idx == j) for j in range(len(cyc_ids))
@@ -1515,7 +1556,7 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
     if POSITIONING_TIME_BY_DIRECTION:
         covs.append(Covariate("time_by_direction", dr[:, None] * _time_by_direction_basis(tau), "basis",
                               POSITIONING_TIME_BY_DIRECTION, (0,),
-                              "time, opposite in the two directions (a reversal that changes)", "time"))
+                              f"{tw}, opposite in the two directions (a reversal that changes)", "time"))
     if POSITIONING_DIRECTION_BY_CYCLE:
         D = np.column_stack([dr * (cyc_idx == j) for j in range(len(cyc_ids))]).astype(float)
         if POSITIONING_TIME_BY_DIRECTION:   # beyond a reversal that changes smoothly through the test (its own line):
@@ -1540,7 +1581,8 @@ def positioning(target_m, direction, cycle, deviation_m, t_s=None, temps: dict |
         covariates=tuple(covs), modes=modes, mode_names=("deviation",), rows=np.arange(n), data=data,
         conventions=("x_ij = measured - target (ISO 230-2); one mean per target and direction",),
         info={"targets": int(len(np.unique(tx))), "cycles": int(len(cyc_ids)),
-              **({"unit": ROTARY_REPORT_UNIT, "target_unit": "deg"} if rotary else {})},
+              **({"unit": ROTARY_REPORT_UNIT, "target_unit": "deg"} if rotary else {}),
+              **({} if clock else {"time": NO_CLOCK_TIME})},
         estimand_label="mean unidirectional positional deviation")
 
 

@@ -1863,7 +1863,9 @@ def _tail_lower_bound(lam: np.ndarray, x: float) -> float:
 
 def _tail(lam: np.ndarray, x: float, p_sat: float, level: float, exact: bool = False) -> tuple[float, bool]:
     """(p, approximate): the tail ``P(sum_j lam_j Z_j^2 > x)`` of a residual test (weights ``lam`` > 0, at least
-    two), exact (Imhof) unless :data:`EXACT_TAIL_NEAR_LEVEL` and neither it nor its decision against ``level``
+    two), exact (:func:`core.lsq.quadratic_form_sf`: x > 0 here, so on the contour through the saddlepoint,
+    :data:`core.lsq.QF_SADDLE_CONTOUR`; Imhof's quadrature until session 36) unless :data:`EXACT_TAIL_NEAR_LEVEL`
+    and neither it nor its decision against ``level``
     can differ from what Satterthwaite's ``p_sat`` says: ``p_sat >= EXACT_TAIL_FACTOR * level`` and the rigorous
     lower bound :func:`_tail_lower_bound` ``>= level`` (the exact tail is then at or above the level). ``exact``:
     exact whatever the constant.
@@ -2137,8 +2139,8 @@ class BetweenNodes:
     interval_m : (float, float)
         Its two nodes, m (axis positions).
     p : float
-        That interval's tail probability under the probing noise (exact: Imhof; Satterthwaite's when
-        ``p_approx``).
+        That interval's tail probability under the probing noise (exact: :func:`core.lsq.quadratic_form_sf`'s
+        saddlepoint contour, Imhof's quadrature until session 36; Satterthwaite's when ``p_approx``).
     p_family : float
         ``p`` times the number of intervals tested (at most 1): what the test compares with its level.
     intervals : int
@@ -2181,8 +2183,8 @@ def between_nodes_fit(res: VolumetricResult, meas, sigma_probe_m: float, u_cal_m
     give the residual directions an error there alone would move, ``W_k = Rp Phi_k`` (the bar calibration's
     and placements' directions projected out, as in :func:`lack_of_fit`), and ``q_k = |W_k^T rp|^2`` is a
     quadratic form of the probing noise with the eigenvalues of ``W_k^T Mp W_k`` as weights: its tail by
-    Satterthwaite's scaled chi-square on every interval, then exactly (Imhof,
-    :func:`core.lsq.quadratic_form_sf`) on the smallest (with :data:`EXACT_TAIL_NEAR_LEVEL`, session 35: only
+    Satterthwaite's scaled chi-square on every interval, then exactly (:func:`core.lsq.quadratic_form_sf`: on
+    the contour through the saddlepoint since session 36, Imhof's quadrature before) on the smallest (with :data:`EXACT_TAIL_NEAR_LEVEL`, session 35: only
     where it could change the decision, :func:`_tail`; else Satterthwaite's, ``p_approx``). The test: that ``p``
     times the number of intervals (Bonferroni) against :data:`BETWEEN_NODES_P`.
 

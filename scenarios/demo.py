@@ -360,10 +360,10 @@ def _discover(t, truth: _Truth, log_path, outp: Path, say):
     """Step 4: discovery; its findings against the two hidden effects. Returns (d, report, all named)."""
     from core.atomic import json_safe, write_json_atomic
     from core.discover import cv_ratio_text, discover
+    from scenarios.discover_run import discover_json
 
     d = discover(t, **_progress_kw(discover, say.within))
-    rep = json_safe(d.to_report())
-    rep["log"] = str(log_path)
+    rep = json_safe(discover_json(d, log_path))   # vmt discover's JSON, by its one writer
     say.wrote(write_json_atomic(outp / "discover.json", rep))
     say(f"baseline {rep['baseline']['model']}: RMS {rep['baseline']['rms_um']:.3f} um, "
         f"cross-validated {rep['baseline_cv_rms_um']:.3f} um")

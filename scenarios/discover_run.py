@@ -23,7 +23,7 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None, b
     (:func:`_discover_mfb_log`), never the planar one; ``bar_calibration`` (a ``vmt-bar-calibration/1`` path) is
     its certificate instead of the log's own lines, refused for any other log.
     """
-    from core.atomic import json_safe, json_text, write_text_atomic
+    from core.atomic import json_text, write_text_atomic
 
     warned: list[str] = []   # the reader's warnings (said on stderr by scenarios.cli.reading), for the JSON
     if _is_positioning_log(log_path):
@@ -34,6 +34,25 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None, b
         d = _discover_positioning(log_path, report, grid_mm, warned=warned)
     else:
         d = _discover_probe_log(log_path, grid_mm, progress, warned=warned, bar_calibration=bar_calibration)
+    rep = discover_json(d, log_path, warned)
+    text = json_text(rep, json_out)
+    if report:
+        from scenarios.reports import discovery_report
+
+        discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
+    write_text_atomic(json_out, text, special=True)
+    return rep
+
+
+def discover_json(d, log_path, warned=()) -> dict:
+    """The JSON document of a discovery ``d`` on the campaign ``log_path``: the engine's report
+    (``d.to_report()``) with the figures ``vmt discover`` adds beside it (the workpiece's form change and its U95
+    outside the part's gauge, the pre-travel lobes the baseline absorbs), the log and the reader's warnings
+    ``warned``. The one writer of ``vmt discover``'s JSON and the demo's discover.json (session 37: the demo wrote
+    the engine's report alone, without ``workpiece_u95_gauge_free``, so its file and the command's on the same
+    campaign differed)."""
+    from core.atomic import json_safe
+
     rep = dict(d.to_report())
     for k in ("workpiece", "findings"):
         if k in rep:
@@ -54,13 +73,7 @@ def run_discover(log_path, json_out, report=None, grid_mm=None, progress=None, b
     if nd is not None:
         rep["not_determined"] = nd
     rep["log"] = str(log_path)
-    rep["input_warnings"] = warned
-    text = json_text(rep, json_out)
-    if report:
-        from scenarios.reports import discovery_report
-
-        discovery_report(report, d, rep, title=f"vmt discover: {Path(log_path).name}")
-    write_text_atomic(json_out, text, special=True)
+    rep["input_warnings"] = list(warned)
     return rep
 
 

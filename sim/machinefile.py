@@ -45,7 +45,8 @@ pitch ripple, default true), and the tables:
   a linear axis's position is reading + ``[tool] offset_mm``, so a pivot
   on the tool side is given where it is at readings = minus the offsets);
 - ``[tool]``: ``offset_mm = [J_X, J_Y, J_Z]``, spindle gauge point minus
-  stylus-tip centre (MFB paper eq. 8; default [0, 0, 150]);
+  stylus-tip centre (MFB paper eq. 8; default [0, 0, 150], said where
+  it is assumed: :func:`tool_offset_note`);
 - ``[probe]``: ``stylus_radius_mm``, ``pretravel_um``,
   ``pretravel_axial_um``, ``lobing = [{k = 3, cos_um = 0.3, sin_um = 0.0}]``
   (``sum cos_um cos(k phi) + sin_um sin(k phi)`` in the approach azimuth),
@@ -221,6 +222,9 @@ class MachineSpec:
         Seed of the realistic set (None: the nominal set).
     overrides : tuple of str
         Symbols set by ``[error.SYMBOL]`` tables.
+    tool_offset_given : bool
+        Whether the file (or the built-in it is based on) gives ``[tool] offset_mm``; False: J is
+        :data:`DEFAULT_OFFSET_MM`, assumed (:func:`tool_offset_note` says so).
     """
 
     config: object
@@ -230,6 +234,7 @@ class MachineSpec:
     errors: str = "none"
     seed: int | None = None
     overrides: tuple = field(default=())
+    tool_offset_given: bool = True
 
     @property
     def name(self) -> str:
@@ -315,6 +320,20 @@ def truth_machine(name_or_path: str, errors: str | None = None, default: str = "
     if errors == "study":
         errs = {k: strip_ripple(v) for k, v in errs.items()}
     return replace(spec, config=replace(cfg, errors=errs), errors=errors, seed=None, overrides=())
+
+
+def tool_offset_note(spec: MachineSpec) -> str | None:
+    """The line a command prints, and writes in its JSON, where ``spec``'s J was assumed (its file gives no
+    ``[tool] offset_mm``: :data:`DEFAULT_OFFSET_MM` stands in), else None.
+
+    J changes results (the Abbe arms through the machine's angular errors, the axis positions reading + J the
+    errors are evaluated at), so a default standing in for it is said, as the CLI says its other assumptions
+    (identify's "probe offsets J unknown", the self-calibration's "scale unknown: delta_L not given"), rather than
+    refused: a file written before [tool] existed, or for the 150 mm probe, still runs, and says what it ran with."""
+    if spec.tool_offset_given:
+        return None
+    J = ", ".join(f"{v * 1e3:g}" for v in spec.config.J_m)
+    return f"tool offset not given: J = ({J}) mm assumed"
 
 
 def errors_label(name_or_path: str, spec: MachineSpec) -> str:
@@ -514,7 +533,8 @@ class _Reader(KeyReader):
         except ConfigError as e:
             self.fail("machine", str(e))
         probe = self.probe(self.table("probe", doc.get("probe", {})))
-        return MachineSpec(cfg, probe, self.source, str(doc.get("description", "")), kind, seed, tuple(overrides))
+        return MachineSpec(cfg, probe, self.source, str(doc.get("description", "")), kind, seed, tuple(overrides),
+                           tool_offset_given="offset_mm" in tool)
 
     def axis_of(self, key, k, axes, text, unit) -> str:
         """The axis of a key ``<axis>_<unit>`` among ``axes`` (named in ``text``)."""

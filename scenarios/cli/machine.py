@@ -247,7 +247,11 @@ def run_show(args) -> int:
     if cfg.rotary_points_R_m:
         print("rotary axis points: " + ", ".join(f"{a} ({', '.join(f'{v * 1e3:g}' for v in p)}) mm"
                                                  for a, p in cfg.rotary_points_R_m.items()))
-    print(f"tool offset J (gauge point - tip centre): ({', '.join(f'{v * 1e3:g}' for v in cfg.J_m)}) mm")
+    from sim.machinefile import tool_offset_note
+
+    note = tool_offset_note(spec)   # the file gives no [tool]: said where its default stands in (session 37)
+    print(f"tool offset J (gauge point - tip centre): ({', '.join(f'{v * 1e3:g}' for v in cfg.J_m)}) mm"
+          + (f" ({note})" if note else ""))
     pr = spec.probe
     lob = ", ".join(f"k={int(k)}: {a * 1e6:g}/{b * 1e6:g} um" for k, a, b in pr.lobing_m) or "none"
     print(f"probe: stylus radius {pr.stylus_r_m * 1e3:g} mm, noise {pr.sigma_m * 1e6:g} um (k=1), "

@@ -159,9 +159,38 @@ def same_tool_offset(a, b) -> bool:
 #: Where the J a command used came from (its JSON's ``tool_offset.from``): ``vmt identify``: the log's
 #: ``tool_offset_mm`` line, that line with ``--tool-offset-mm`` giving the same J, the option alone (the log has no
 #: line), neither (J unknown); ``vmt vcmm``: the machine's ``[tool] offset_mm`` (a machine file's, a built-in's
-#: shipped file's), with the plan's ``tool_offset_mm`` line saying the same J; ``vmt demo``'s identify.json:
-#: ``machine`` (the virtual machine's tool).
-TOOL_OFFSET_FROM = ("log", "log and option", "option", "none", "machine", "machine and log")
+#: shipped file's), with the plan's ``tool_offset_mm`` line saying the same J, or ``assumed``: the machine file
+#: gives no ``[tool] offset_mm`` and the plan no line, J is :data:`sim.machinefile.DEFAULT_OFFSET_MM` (the record's
+#: ``note`` says so, :func:`sim.machinefile.tool_offset_note`); ``vmt demo``'s identify.json: ``machine`` (the
+#: virtual machine's tool).
+TOOL_OFFSET_FROM = ("log", "log and option", "option", "none", "machine", "machine and log", "assumed")
+
+#: How a command says where its J came from, one of :data:`TOOL_OFFSET_FROM` (``none`` and ``assumed`` have their
+#: own sentences in :func:`tool_offset_said`).
+TOOL_OFFSET_FROM_WORDS = {"log": "the log's tool_offset_mm line",
+                          "log and option": "the log's tool_offset_mm line and --tool-offset-mm",
+                          "option": "--tool-offset-mm (the log has no tool_offset_mm line)",
+                          "machine": "the machine's [tool] offset_mm",
+                          "machine and log": "the machine's [tool] offset_mm and the plan's tool_offset_mm line"}
+
+
+def tool_offset_said(J_mm, J_from: str, placed: str, note: str | None = None) -> str:
+    """The one line that says which probe offsets J a command used and where they came from, in the words of
+    ``vmt identify``'s (``probe offsets J = (x, y, z) mm, from ...: <placed> at the axis positions reading + J``).
+
+    ``J_mm`` (3,) mm or None (unknown: ``J_from`` ``"none"``); ``J_from`` one of :data:`TOOL_OFFSET_FROM`;
+    ``placed`` what sits at the axis positions (``"the tables"``, ``"the runs"``); ``note`` for ``"assumed"``:
+    :func:`sim.machinefile.tool_offset_note`'s line."""
+    if J_from not in TOOL_OFFSET_FROM:
+        raise ValueError(f"tool_offset_said: J_from {J_from!r} is not one of {', '.join(TOOL_OFFSET_FROM)}")
+    if J_mm is None:
+        return (f"probe offsets J unknown (no tool_offset_mm line in the log, no --tool-offset-mm): {placed} at the "
+                "readings, the state's probe_offsets_J_mm null")
+    J = f"({', '.join(f'{v:g}' for v in J_mm)}) mm"
+    if J_from == "assumed":
+        return f"probe offsets J = {J}, {note or 'tool offset not given: J = ' + J + ' assumed'}: {placed} at the " \
+               "axis positions reading + J"
+    return f"probe offsets J = {J}, from {TOOL_OFFSET_FROM_WORDS[J_from]}: {placed} at the axis positions reading + J"
 
 
 def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, float] | None, str]:
@@ -188,9 +217,13 @@ def tool_offset_of_log(log, given: str | None) -> tuple[tuple[float, float, floa
     return J_log, "log and option"
 
 
-def tool_offset_record(J, source: str) -> dict:
-    """The JSON record of the J a command used: ``{"J_mm": [x, y, z] or null, "from": source}``."""
-    return {"J_mm": None if J is None else [float(v) + 0.0 for v in J], "from": source}
+def tool_offset_record(J, source: str, note: str | None = None) -> dict:
+    """The JSON record of the J a command used: ``{"J_mm": [x, y, z] or null, "from": source}``, and ``"note"``
+    where ``note`` is given (``from`` ``assumed``: :func:`sim.machinefile.tool_offset_note`'s line)."""
+    rec = {"J_mm": None if J is None else [float(v) + 0.0 for v in J], "from": source}
+    if note is not None:
+        rec["note"] = note
+    return rec
 
 
 GRID_HELP = ("error-map grid, mm: STEP (nodes at multiples of it covering the touches) or x0:x1:step (both axes; "

@@ -105,7 +105,7 @@ def run(args) -> int:
     from scenarios.cli.guard import progress_line
 
     with progress_line(f"simulate {args.artefact}: % of the work") as bar:
-        log, cfg, errors = _campaign(args, bar)
+        log, cfg, errors, note = _campaign(args, bar)
     from scenarios.cli.guard import said
 
     from core.exceptions import counted
@@ -117,13 +117,16 @@ def run(args) -> int:
     else:
         print(f"{said(args.out)}: campaign of {log.n} touches ({int(log.ok.sum())} ok) on {args.artefact}, "
               f"machine {cfg.name}, errors {errors}, {setups}")
+    if note and not args.plan_only:   # the J the touches were simulated with changes them: said where assumed
+        print(note)
     if args.artefact == "mfb":      # (a user following this command's help must not reach a refusal unwarned)
         print(MFB_CATALOGUE_NOTE)
     return 0
 
 
 def _campaign(args, bar):
-    """Simulate the campaign of ``args`` and write its log; return (log, machine config, errors label)."""
+    """Simulate the campaign of ``args`` and write its log; return (log, machine config, errors label, the
+    assumed tool offset's line or None: :func:`sim.machinefile.tool_offset_note`)."""
     from core.exceptions import ConfigError
 
     for name in POSITIONING_ONLY:
@@ -139,7 +142,7 @@ def _campaign(args, bar):
     from sim.campaign import simulate_campaign
     from sim.catalog import CATALOG
     from sim.machine import Machine
-    from sim.machinefile import errors_label, truth_machine
+    from sim.machinefile import errors_label, tool_offset_note, truth_machine
 
     rec = CATALOG[args.artefact]
     name = args.machine or rec.default_machine
@@ -184,7 +187,7 @@ def _campaign(args, bar):
     bar(SIMULATE_SHARES[1], 100)
     write_probe_log(args.out, log, special=True)
     bar(SIMULATE_SHARES[2], 100)
-    return log, cfg, errors
+    return log, cfg, errors, tool_offset_note(spec)
 
 
 # --------------------------------------------------------------------------- vmt simulate positioning

@@ -66,25 +66,29 @@ def _u_decimals(tol) -> int:
     return max(0, min(6, -math.floor(math.log10(2 * tol) + 1e-9)))
 
 
-def _tool_offset(plan, cfg, path) -> dict:
+def _tool_offset(plan, spec, path) -> dict:
     """The J the runs probe with, the machine's ``[tool] offset_mm``, as its JSON record (``tool_offset``: from
-    ``machine``, or ``machine and log`` when the plan's ``tool_offset_mm`` line says the same J). A plan that is a
-    log of touches made with another J (its ``tool_offset_mm`` line, vmt probe / import grbl --tool-offset-mm) is
-    refused: the runs would be another tool's touches (its Abbe arms through the machine's angular errors), and
-    the log is the record of the tool used."""
+    ``machine``, or ``machine and log`` when the plan's ``tool_offset_mm`` line says the same J, or ``assumed``
+    with its ``note`` where the machine file gives no ``[tool]`` and the plan no line:
+    :func:`sim.machinefile.tool_offset_note`). A plan that is a log of touches made with another J (its
+    ``tool_offset_mm`` line, vmt probe / import grbl --tool-offset-mm) is refused: the runs would be another tool's
+    touches (its Abbe arms through the machine's angular errors), and the log is the record of the tool used."""
     from core.exceptions import ConfigError
     from hardware.campaign import tool_offset_text
     from scenarios.cli.options import log_tool_offset, same_tool_offset, tool_offset_record
+    from sim.machinefile import tool_offset_note
 
+    cfg = spec.config
+    note = tool_offset_note(spec)
     J_cfg = [round(float(v) * 1e3, 9) for v in cfg.J_m]   # mm, as the files round J (1e-9 mm)
     J_log = log_tool_offset(plan)
     if J_log is None:
-        return tool_offset_record(J_cfg, "machine")
+        return tool_offset_record(J_cfg, "machine") if note is None else tool_offset_record(J_cfg, "assumed", note)
     if not same_tool_offset(J_log, J_cfg):
         raise ConfigError(f"{path}: its tool_offset_mm line says its touches were logged with J = "
                           f"{tool_offset_text(J_log)} mm, the machine {cfg.name}'s [tool] offset_mm is "
-                          f"{tool_offset_text(J_cfg)} mm: the runs would be another tool's touches; give a machine "
-                          "file whose [tool] offset_mm is the log's J")
+                          f"{tool_offset_text(J_cfg)} mm{' (' + note + ')' if note else ''}: the runs would be "
+                          "another tool's touches; give a machine file whose [tool] offset_mm is the log's J")
     return tool_offset_record(J_log, "machine and log")
 
 
@@ -96,6 +100,7 @@ def run(args) -> int:
     from scenarios.cli.reading import read_probe
     from core.vcmm import load_task
     from scenarios.cli.guard import progress_line, said
+    from scenarios.cli.options import tool_offset_said
     from scenarios.vcmm import prepare, study
     from sim.machinefile import truth_machine
 
@@ -108,7 +113,7 @@ def run(args) -> int:
         raise ConfigError(f"--sobol-runs must be 0 or >= 2, got {args.sobol_runs}")
     spec = truth_machine(args.machine, args.errors, "none")
     plan = read_probe(args.plan, "vcmm")
-    J_said = _tool_offset(plan, spec.config, args.plan)   # a log of another tool refused before any run
+    J_said = _tool_offset(plan, spec, args.plan)   # a log of another tool refused before any run
     state = None
     if args.machine_state is not None:
         from core.state import read_estimate
@@ -157,6 +162,7 @@ def run(args) -> int:
     rep["tool_offset"] = J_said
     print(f"{args.plan}: {rep['touches']} touches on {rep['machine']}, {rep['runs']} runs "
           f"({rep['runs_total']} with the budget, {rep['runs_per_s']:.1f} runs/s), seed {args.seed}")
+    print(tool_offset_said(J_said["J_mm"], J_said["from"], "the runs", J_said.get("note")))   # identify's words
     for m in rep["measurands"]:
         tail = "" if m["converged"] else "  NOT CONVERGED (max_runs reached)"
         d = _u_decimals(m.get("tolerance"))

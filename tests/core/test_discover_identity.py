@@ -270,6 +270,12 @@ before blind set F); gen_b stylus_pickup 501 gains part_change's refusal in the 
 thermal_drift (``DROPPED_ROUND_REOPENED``, likewise), and its four refusals made beside that thermal_drift are
 marked so (``REFUSALS_BESIDE_DROPPED_MARKED``: the reason's end, ``made_beside_dropped``, ``judged_again_later``).
 No finding, confidence or workpiece leaf moved.
+
+Refreshed for session 37 (left37): one leaf added, the demo's probe_lobing ``evidence.magnitude_not_seen``
+(``core.discover.MAGNITUDE_NOT_SEEN_NOTE``: "k1_amplitude_um, k3_amplitude_um: not determined on this design: ...
+(4 of its 8 directions unseen)", the two magnitudes the weak-direction rule leaves without a value, said nowhere
+before); that key's value alone inserted (/tmp/left37/refresh.py), every other leaf as stored; the fifteen other
+campaigns pass unrefreshed (none has such a magnitude).
 """
 
 from __future__ import annotations

@@ -289,7 +289,11 @@ def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified
     capsys.readouterr()
     v = tmp_path / "v.json"
     assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(out), "--tol-um", "1"]) == 0
-    assert "probe offsets" not in capsys.readouterr().out                   # nmv3000's tool: [0, 0, 150] mm
+    said = capsys.readouterr().out                                           # nmv3000's tool: [0, 0, 150] mm
+    # no notice of the state's check: the one line naming probe offsets is the J the runs used (session 37)
+    assert [ln for ln in said.splitlines() if "probe offsets" in ln] == [
+        "probe offsets J = (0, 0, 150) mm, from the machine's [tool] offset_mm: the runs at the axis positions "
+        "reading + J"], said
     assert main(["identify", str(log), "--json", str(out), "--tool-offset-mm", "0,0,100", "--delta-l-um", "0"]) == 0
     capsys.readouterr()
     v.unlink()

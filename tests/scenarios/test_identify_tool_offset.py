@@ -204,10 +204,10 @@ def test_vcmm_refuses_a_plan_logged_with_another_J_than_its_machines(tmp_path, c
     from scenarios.cli.vcmm import _tool_offset
     from sim.machinefile import truth_machine
 
-    cfg = truth_machine("vmc-3axis", None, "none").config
+    spec = truth_machine("vmc-3axis", None, "none")
     same = read_probe_log(_with_line(src, tmp_path / "plan150.csv", "0,0,150"))
-    assert _tool_offset(same, cfg, "p") == {"J_mm": [0.0, 0.0, 150.0], "from": "machine and log"}
-    assert _tool_offset(read_probe_log(src), cfg, "p") == {"J_mm": [0.0, 0.0, 150.0], "from": "machine"}
+    assert _tool_offset(same, spec, "p") == {"J_mm": [0.0, 0.0, 150.0], "from": "machine and log"}
+    assert _tool_offset(read_probe_log(src), spec, "p") == {"J_mm": [0.0, 0.0, 150.0], "from": "machine"}
 
 
 # --------------------------------------------------------------------------- the GRBL route, closed
