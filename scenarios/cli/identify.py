@@ -284,7 +284,8 @@ def _run_mfb(args, log, bar) -> int:
         raise ConfigError(f"{src}: no probing noise for the U95: give --noise-um (k = 1) or the log's "
                           "probe_repeatability_k2_um line")
     warned = list(log.warnings)
-    machine = log.meta.get("machine") or log.meta.get("plan_machine")
+    from core.state import log_machine
+    machine = log_machine(log.meta)[0]   # the plan's machine, not the controller's name, as the planar route
     del log
     bar(1, 4)
     from scenarios.cli.guard import about_file
