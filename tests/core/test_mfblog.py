@@ -88,8 +88,8 @@ def test_certificate_refusals(meta, words):
 
 
 def test_probe_sigma_is_half_the_k2_line():
-    assert probe_sigma_of_log(_log({"probe_repeatability_k2_um": "0.25"})) == pytest.approx(0.125e-6, rel=1e-15)
-    assert probe_sigma_of_log(_log({"plan_probe_repeatability_k2_um": "0.5"})) == pytest.approx(0.25e-6, rel=1e-15)
+    assert probe_sigma_of_log(_log({"probe_repeatability_k2_um": "0.25"})) == pytest.approx(0.125e-6, rel=1e-15, abs=0)
+    assert probe_sigma_of_log(_log({"plan_probe_repeatability_k2_um": "0.5"})) == pytest.approx(0.25e-6, rel=1e-15, abs=0)
     assert probe_sigma_of_log(_log({})) is None
 
 

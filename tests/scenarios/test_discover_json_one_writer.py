@@ -63,7 +63,8 @@ def test_the_demos_discover_json_has_what_vmt_discovers_has(tmp_path):
             return 0.0
 
     said = []
-    say = type("Say", (), {"__call__": lambda self, s: said.append(s), "within": lambda self, d, n: None})()
+    say = type("Say", (), {"__call__": lambda self, s: said.append(s), "within": lambda self, d, n: None,
+                           "wrote": lambda self, *paths: None})()
     demo._discover(t, Truth, p, tmp_path, say)
     got = json.loads((tmp_path / "discover.json").read_text())
     want = json.loads(json.dumps(discover_json(discover(t), p)))
