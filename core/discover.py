@@ -3248,6 +3248,14 @@ def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note
 FINER_MAP_SHORTCUT = True
 
 
+def _baseline_u95_rms(bl: Baseline) -> float:
+    """:func:`_u95_rms` of any discovery on ``bl`` (a dense design), from the baseline alone: the covariance
+    :func:`_workpiece` gives the report's baseline workpiece, by the same call (``linear_map`` changes nothing of it
+    on a dense design)."""
+    cb = _constrained(bl.A, bl.y, bl.C, bl.d, np.arange(bl.n), None, 0, tol=getattr(bl, "rank_tol", None))[1]
+    return _u95_rms_of(cb[np.ix_(bl.estimand, bl.estimand)], bl)
+
+
 class _NoneImpossible(Exception):
     """Raised by :func:`discover_baseline` (``stop_unless_none_possible``) where its report cannot read ``none``."""
 
@@ -3276,10 +3284,9 @@ def _finer_map_search(bl: Baseline, d: Discovery, settings: Settings, rng, u95_d
       by the search itself first, or once more where its first screen set touches aside) is the search's first
       step, and the search stops there (``stop_unless_none_possible``).
     """
-    if FINER_MAP_SHORTCUT and isinstance(bl.A, np.ndarray):
-        cb = _constrained(bl.A, bl.y, bl.C, bl.d, np.arange(bl.n), None, 0, tol=getattr(bl, "rank_tol", None))[1]
-        if not _u95_rms_of(cb[np.ix_(bl.estimand, bl.estimand)], bl) <= FINER_MAP_U95_RATIO * u95_d:
-            return None
+    if FINER_MAP_SHORTCUT and isinstance(bl.A, np.ndarray) \
+            and not _baseline_u95_rms(bl) <= FINER_MAP_U95_RATIO * u95_d:
+        return None
     stop = FINER_MAP_SHORTCUT and not (FINER_MAP_OUTLIERS_AGREE and d.outlier_rows)
     _PLAIN_STRUCTURE[0] = True
     try:
