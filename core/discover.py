@@ -3248,7 +3248,7 @@ def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note
 #: :func:`_finer_map_check` skips the search on the finer map where its answer is known beforehand not to be taken
 #: (:func:`_finer_map_search`): the same report, at a fraction of the cost (the search on the finer map was 40 % of
 #: a discovery's CPU on gen_a's campaigns where it ran, and read something other than ``none`` on nearly all of
-#: them). Exact: False runs the search everywhere, as before (session 37, fast37; docs/discovery.md, "Session 37:
+#: them). Exact: False runs the search everywhere, as before (session 37, fast37; docs/discovery-studies.md, "Session 37:
 #: the finer-map check's cost").
 FINER_MAP_SHORTCUT = True
 
