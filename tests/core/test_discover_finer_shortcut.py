@@ -11,8 +11,6 @@ from the baseline alone), gen_c none 220 (the 22 mm map reads none and is taken:
 
 import json
 
-import numpy as np
-import pytest
 
 import core.discover as D
 from scenarios.blind import gen_b, gen_c
