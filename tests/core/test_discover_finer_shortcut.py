@@ -11,7 +11,6 @@ from the baseline alone), gen_c none 220 (the 22 mm map reads none and is taken:
 
 import json
 
-
 import core.discover as D
 from scenarios.blind import gen_b, gen_c
 from tests.discover_helpers import discovered
