@@ -127,8 +127,8 @@ def test_a_log_with_the_required_columns_only(tmp_path, capsys):
 
 def test_a_plans_unknown_keys_and_columns_survive_an_import(tmp_path, capsys):
     """A hand plan (measured cells empty) with unknown metadata and an unknown column, and a PROBEOPEN file
-    of 9 numbers a line written by hand: the measured log keeps artefact, stylus_r_mm and kinematic_chain,
-    every other plan key as plan_<key> (docs/formats.md), the unknown column carried."""
+    of 9 numbers a line written by hand: the measured log keeps artefact, stylus_r_mm, kinematic_chain and
+    machine, every other plan key as plan_<key> (docs/formats.md), the unknown column carried."""
     cols = REQ + ["C_deg", "operator"]
     plan = _write(tmp_path / "plan.csv", META, cols, measured=False)
     probe = tmp_path / "probe.txt"
@@ -141,7 +141,9 @@ def test_a_plans_unknown_keys_and_columns_survive_an_import(tmp_path, capsys):
     assert meta["artefact"] == "square pocket 100 mm" and meta["stylus_r_mm"] == "1.5"
     assert meta["kinematic_chain"] == "V[w-C'-Y'-b-X-Z-(C)-t]"
     assert meta["plan_operator"] == "Jan" and meta["plan_shop_order"] == "4711: pocket; two"
-    assert meta["plan_machine"] == "shop VMC 3, C table"
+    # the plan's machine keeps its name, the controller beside it (since session 37; before: plan_machine)
+    assert meta["machine"] == "shop VMC 3, C table" and meta["controller"] == "linuxcnc"
+    assert "plan_machine" not in meta
     rows = list(csv.DictReader(io.StringIO("\n".join(ln for ln in text.splitlines() if not ln.startswith("#")))))
     assert len(rows) == 80 and all(r["operator"] == "Jan de Vries" for r in rows)
     capsys.readouterr()

@@ -125,7 +125,7 @@ def test_failed_run_leaves_no_output(files, capsys, monkeypatch):
     keep = files["dir"] / "notes.txt"
     keep.write_text("mine")
 
-    def half(log_path, json_out, report=None, grid_mm=None, progress=None):
+    def half(log_path, json_out, report=None, grid_mm=None, progress=None, bar_calibration=None):
         from core.atomic import write_json_atomic
 
         write_json_atomic(json_out, {"baseline": {}})
