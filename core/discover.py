@@ -3784,17 +3784,23 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         return np.setdiff1d(all_rows, outliers_of(np.hstack([bl.A, _stack(kept, all_rows)])) if kept
                             else outliers_of(bl.A, Qall))
 
-    def judge_again(old: Term, kept: list, rows_, gone: Term) -> Term | None:
-        """The cause of ``old``, adopted with ``gone`` in the model, judged again by the search's tests beside
-        ``kept`` alone (the causes adopted before it that stay) on ``rows_``: its term as adopted there (its form
-        chosen again), or None (refused, said so in ``rejected``)."""
+    def evaluated_again(cause: str, kept: list, rows_) -> dict:
+        """The search's evaluation of ``cause`` beside ``kept`` on ``rows_`` (its round's model, diagnosis and
+        held-out base), recorded in ``seen`` and ``judged`` as a round's: :func:`judge_again`'s and
+        :func:`pair_decided`'s one step."""
         _, f_, s_ = model(rows_, kept)
         # the search's own diagnosis of a round: every covariate in its first, the smooth ones after
         diag_ = diagnosis(s_, smooth_covs if kept else bl.covariates, rows_)
         seen.append((s_, diag_))
         cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
-        judged.append((old.cause, named_in(kept)))
-        cand = evaluate(by_name[old.cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
+        judged.append((cause, named_in(kept)))
+        return evaluate(by_name[cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
+
+    def judge_again(old: Term, kept: list, rows_, gone: Term) -> Term | None:
+        """The cause of ``old``, adopted with ``gone`` in the model, judged again by the search's tests beside
+        ``kept`` alone (the causes adopted before it that stay) on ``rows_``: its term as adopted there (its form
+        chosen again), or None (refused, said so in ``rejected``)."""
+        cand = evaluated_again(old.cause, kept, rows_)
         if cand.get("reason"):
             rejected.append(_Refusal({"cause": old.cause, "reason": f"judged again without {gone.cause} (adopted "
                                       f"before it, then dropped): {cand['reason']}"},
@@ -3866,12 +3872,7 @@ def discover_baseline(bl: Baseline, *, settings: Settings = Settings(), rng: np.
         if not refused or gone.cause in pair_restored or len(kept) >= settings.max_findings:
             return None
         names = ", ".join(o.cause for o in refused)
-        _, f_, s_ = model(rows_, kept)
-        diag_ = diagnosis(s_, smooth_covs if kept else bl.covariates, rows_)
-        seen.append((s_, diag_))
-        cv_ = f_.mse(y[rows_], _stack(kept, rows_), _penalty(kept)) if kept else f_.mse(y[rows_])
-        judged.append((gone.cause, named_in(kept)))
-        cand = evaluate(by_name[gone.cause], s_, f_, kept, cv_, _family_ss(bl, diag_, len(rows_), s_.rss))
+        cand = evaluated_again(gone.cause, kept, rows_)
         if cand.get("reason"):
             rejected.append(_Refusal({"cause": gone.cause, "reason": f"judged again once {names} (adopted after it) "
                                       f"was refused without it: {cand['reason']}"},
