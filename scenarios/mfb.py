@@ -602,6 +602,19 @@ def _fit_holes(T_R_A, reach, J_m, strokes=None, J_ref_m=None,
 PLANS = {"mfb-3axis": plan_3axis, "mfb-5axis": plan_5axis}
 
 
+def plan_truth_spec(plan: str, machine: str | None, errors: str | None):
+    """The truth machine ``--machine``/``--errors`` ask for on MFB plan ``plan`` (`vmt scenario`, `vmt simulate`),
+    or None: the plan's own machine with the study's errors (naming it, or omitting both, is the same)."""
+    if machine is None and errors is None:
+        return None
+    own = PLANS[plan]().machine
+    if (machine or own) == own and (errors or "study") == "study":
+        return None
+    from sim.machinefile import truth_machine
+
+    return truth_machine(machine or own, errors, "study")
+
+
 #: Default placement uncertainty of a bar set by hand on the table (standard):
 #: 0.2 mm along x_A, y_A, 0.1 mm along z_A; 0.5 mrad roll and pitch, 1 mrad yaw.
 U_PLACE = (0.2e-3, 0.2e-3, 0.1e-3, 0.5e-3, 0.5e-3, 1.0e-3)

@@ -17,16 +17,9 @@ def _mfb(args) -> int:
     from scenarios.cli.guard import progress_line
     from scenarios.mfb import describe_budget
 
-    spec = None
-    if args.machine is not None or args.errors is not None:
-        from sim.machinefile import truth_machine
-        from scenarios.mfb import PLANS
+    from scenarios.mfb import plan_truth_spec
 
-        own = PLANS[args.name]().machine
-        name = args.machine or own
-        if name != own or (args.errors or "study") != "study":
-            spec = truth_machine(name, args.errors, "study")
-        # else naming the plan's machine (error set study) is omitting it: the study's own truth machine
+    spec = plan_truth_spec(args.name, args.machine, args.errors)   # None: the study's own truth machine
     kw = dict(seed=args.seed, noise_um=args.noise_um, mc_runs=500 if args.mc is None else args.mc, machine=spec)
     from scenarios.cli.options import declared_ripples
 

@@ -301,16 +301,9 @@ def _run_mfb_plan(args) -> int:
         if given:
             raise ConfigError(f"{flag}: the {args.artefact} plan places its bars itself and is always checked for "
                               "collisions (vmt scenario's plan); leave it out")
-    spec = None
-    from scenarios.mfb import PLANS, campaign_log, run
+    from scenarios.mfb import campaign_log, plan_truth_spec, run
 
-    if args.machine is not None or args.errors is not None:
-        from sim.machinefile import truth_machine
-
-        own = PLANS[args.artefact]().machine
-        name = args.machine or own
-        if name != own or (args.errors or "study") != "study":
-            spec = truth_machine(name, args.errors, "study")
+    spec = plan_truth_spec(args.artefact, args.machine, args.errors)
     seed = 0 if args.seed is None else args.seed
     from scenarios.cli.guard import progress_line
 
