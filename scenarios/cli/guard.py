@@ -126,6 +126,15 @@ class OneLineParser(argparse.ArgumentParser):
         kw["formatter_class"] = _whole_names(kw.get("formatter_class", argparse.HelpFormatter))
         super().__init__(*args, **kw)
 
+    def add_argument(self, *args, **kw):  # noqa: D102
+        # an option of options.PLACEHOLDERS shows its one placeholder in every command (unless given its own:
+        # the walk in tests/scenarios/test_cli_options.py refuses a second one)
+        from scenarios.cli.options import PLACEHOLDERS
+
+        if args and args[0] in PLACEHOLDERS and "metavar" not in kw and kw.get("action") in (None, "store"):
+            kw["metavar"] = PLACEHOLDERS[args[0]]
+        return super().add_argument(*args, **kw)
+
     def error(self, message):  # noqa: D102 - argparse's hook
         m = re.fullmatch(r"argument (--[\w-]+)(?:/[^:]*)?: expected one argument", message)
         if m:   # argparse takes a value such as -110:110 for an option: '--travel-mm -100:100' lands here
