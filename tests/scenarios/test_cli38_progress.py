@@ -1,0 +1,47 @@
+"""Progress with time left inside each seed of ``vmt regress`` (session 38, cli38).
+
+A shipped study has one or two seeds of 4-11 s each; the line counted seeds only, so it sat at ``0/1`` with no
+time left until the run ended. ``run_study`` now reports the percent of the study done, each seed's own stages
+inside its share.
+"""
+
+from pathlib import Path
+
+import scenarios.regress as regress
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_run_study_counts_each_seeds_stages_in_percent(monkeypatch):
+    """Known answer: two seeds, a runner that says 1 of 4 then 4 of 4 of its work: 0, 12, 50 (seed 1 done),
+    50 (seed 2 starts), 62, 100, 100 (the study done)."""
+    study = regress.load_study(ROOT / "scenarios" / "data" / "regress-discover-none-nmv3000.toml")
+    assert len(study.seeds) == 2
+
+    def runner(st, seed, progress=None):
+        progress(1, 4)
+        progress(4, 4)
+        return {"cause": regress.Causes(())}
+
+    monkeypatch.setitem(regress.RUNNERS, study.identification, runner)
+    calls = []
+    regress.run_study(study, progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(0, 100), (12, 100), (50, 100), (50, 100), (62, 100), (100, 100), (100, 100)]
+
+
+def test_a_runner_without_a_count_still_runs_without_progress(monkeypatch):
+    """Runners are called as before (two arguments) when nobody asks for progress (the studies' own callers)."""
+    study = regress.load_study(ROOT / "scenarios" / "data" / "regress-discover-none-nmv3000.toml")
+    monkeypatch.setitem(regress.RUNNERS, study.identification, lambda st, sd: {"cause": regress.Causes(())})
+    res = regress.run_study(study)
+    assert len(res.seconds) == 2
+
+
+def test_the_selfcal_runner_reports_its_stages(monkeypatch):
+    """The self-calibration runner's stages at their measured shares (SEED_SHARES), in order (run_study says the
+    seed's end)."""
+    study = regress.load_study(ROOT / "scenarios" / "data" / "regress-selfcal-nmv3000.toml")
+    calls = []
+    regress.RUNNERS["selfcal"](study, study.seeds[0], progress=lambda d, t: calls.append((d, t)))
+    assert [d for d, _ in calls][:3] == [0, *regress.SEED_SHARES["selfcal"][:2]]
+    assert all(t == 100 for _, t in calls)
