@@ -248,6 +248,14 @@ def _declared(args) -> dict:
     return out
 
 
+#: Percent of ``vmt identify``'s work on a multi-feature bar's log done when the bars' points of interest are
+#: fitted and when every measurement's noise gain is computed (:func:`core.mfblog.read_mfb_log` counts them); the
+#: identification's three steps share the rest evenly. Measured on ``vmt simulate mfb-3axis``'s log with --mc 500
+#: (session 38, load 3-11: the line read 0/4 for the 7.5 s of the reading, then "~23 s left" of 11 s): reading
+#: 7.5 s of 18 s, the identification's steps 4.4, 5.6 and 0.8 s.
+MFB_IDENTIFY_SHARES = (15, 40)
+
+
 def _run_mfb(args, log, bar) -> int:
     """``vmt identify`` on a multi-feature bar's log: the 21 errors of X, Y, Z (:func:`scenarios.mfb.identify_log`),
     the options the planar identification alone takes refused in one line, nothing written."""
@@ -278,7 +286,8 @@ def _run_mfb(args, log, bar) -> int:
         J_mm, _ = tool_offset_of_log(log, args.tool_offset_mm)
         log = replace(log, meta={**log.meta, TOOL_OFFSET_KEY: ",".join(repr(float(v)) for v in J_mm)})
     cert = _bar_certificate(args)
-    ml = read_mfb_log(log, cert)
+    fitted, read = MFB_IDENTIFY_SHARES
+    ml = read_mfb_log(log, cert, progress=lambda k, n: bar(fitted + (read - fitted) * k // max(n, 1), 100))
     sigma = args.noise_um * 1e-6 if args.noise_um is not None else ml.sigma_probe_m
     if sigma is None:
         raise ConfigError(f"{src}: no probing noise for the U95: give --noise-um (k = 1) or the log's "
@@ -287,13 +296,13 @@ def _run_mfb(args, log, bar) -> int:
     from core.state import log_machine
     machine = log_machine(log.meta)[0]   # the plan's machine, not the controller's name, as the planar route
     del log
-    bar(1, 4)
     from scenarios.cli.guard import about_file
     from scenarios.mfb import identify_log
 
     with about_file(src):   # 'rank deficient by 2 ...': of this log's plan
         doc = identify_log(ml, sigma_m=sigma, mc_runs=args.mc, rng=np.random.default_rng(args.seed or 0),
-                           source=src, machine=machine, progress=lambda k, n: bar(1 + k, 4), declared_ripple=declared)
+                           source=src, machine=machine, progress=lambda k, n: bar(read + (100 - read) * k // max(n, 1), 100),
+                           declared_ripple=declared)
     doc["input_warnings"] = warned
     from core.atomic import write_json_atomic
 
