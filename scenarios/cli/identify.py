@@ -222,7 +222,8 @@ def _dominant(res, t, file_row) -> None:
     named = ", ".join(f"row {int(file_row[i])} (set-up {t.setup_ids[t.setup[i]]!r}, target "
                       f"{t.target_ids[t.target[i]]!r}) {r[i] * 1e6:+.1f} um" for i in dom[:DOMINANT_MOST])
     more = f" and {dom.size - DOMINANT_MOST} more" if dom.size > DOMINANT_MOST else ""
-    print(f"residual dominated by {counted(int(dom.size), 'touch', 'touches')}, {'each ' * (dom.size > 1)}over {DOMINANT_Z:g} times the "
+    print(f"residual dominated by {counted(int(dom.size), 'touch', 'touches')}, {'each ' * (dom.size > 1)}over "
+          f"{DOMINANT_Z:g} times the "
           f"RMS of the smaller ones: {named}{more}; {100 * share:.1f} % of the residual sum of squares, the other "
           f"touches' RMS {np.sqrt(np.mean(rest ** 2)) * 1e6:.3f} um. Every figure above rests on them: check those "
           "readings (a typed value? vmt discover names such outliers)")
@@ -301,7 +302,8 @@ def _run_mfb(args, log, bar) -> int:
 
     with about_file(src):   # 'rank deficient by 2 ...': of this log's plan
         doc = identify_log(ml, sigma_m=sigma, mc_runs=args.mc, rng=np.random.default_rng(args.seed or 0),
-                           source=src, machine=machine, progress=lambda k, n: bar(read + (100 - read) * k // max(n, 1), 100),
+                           source=src, machine=machine,
+                           progress=lambda k, n: bar(read + (100 - read) * k // max(n, 1), 100),
                            declared_ripple=declared)
     doc["input_warnings"] = warned
     from core.atomic import write_json_atomic

@@ -256,7 +256,8 @@ def add_mc_arg(p, default_text: str) -> None:
     p.add_argument("--mc", type=int, default=None, metavar="N",
                    help=f"Monte Carlo runs (JCGM 101: each run draws every input once and identifies again; the "
                         f"U95 in identify and scenario cross-pocket-uncertainty: 2 x the runs' std (Gaussian errors: "
-                        f"probing noise through a linear estimator); in scenario mfb-*: the half-width of the runs' 2.5-97.5 %% interval), at "
+                        f"probing noise through a linear estimator); in scenario mfb-*: the half-width of the runs' "
+                        f"2.5-97.5 %% interval), at "
                         f"least {MC_MIN_RUNS} ({default_text})")
 
 
@@ -399,8 +400,8 @@ def _ripple_symbols(angular: bool) -> tuple:
 def add_declared_ripple_args(p, um_help: str, urad_help: str) -> None:
     """The two options ``--declared-ripple-um-mm`` (dest ``declared_ripple``) and
     ``--declared-ripple-urad-mm`` (``declared_ripple_urad``) on parser ``p``, with each command's help;
-    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once (shared options live here: a command module
-    is a leaf, CONTRIBUTING.md)."""
+    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once (shared
+    options live here: a command module is a leaf, CONTRIBUTING.md)."""
     p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
                    help=um_help)
     p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",

@@ -27,7 +27,8 @@ def run(args) -> int:
     from scenarios.regress import junit_xml, load_study, run_study
 
     study = load_study(args.study)
-    with progress_line(f"regress ({len(study.seeds)} seed{'s' if len(study.seeds) != 1 else ''}): % of the work") as bar:
+    seeds = f"{len(study.seeds)} seed{'s' if len(study.seeds) != 1 else ''}"
+    with progress_line(f"regress ({seeds}): % of the work") as bar:
         res = run_study(study, progress=bar)
     print(f"{args.study}: {study.name} ({study.identification} on {study.machine.config.name}, "
           f"seeds {', '.join(map(str, study.seeds))}, noise {study.noise_um:g} um k=1"
