@@ -148,14 +148,22 @@ def main(argv=None) -> int:
     if a.seeds[1] <= a.seeds[0]:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]}: no seed (HI must exceed LO)", file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     recs = []
+    bar = TerminalProgress("comprule_study: seeds")     # on a terminal only (stderr): the time left
+    total = len(a.machines) * (a.seeds[1] - a.seeds[0])
+    bar(0, total)
     for m in a.machines:
         spec = machine_spec(m)
         for s in range(*a.seeds):
             x = one_seed(m, s, spec)
             recs.append(x)
+            bar.clear()
             print(m, s, "before " + "/".join(f"{v:.2f}" for v in x["before_um"]), " | ".join(
                 f"{k}: " + "/".join(f"{v:.2f}" for v in x[k + "_um"]) for k in RULES), flush=True)
+            bar(len(recs), total)
+    bar.close()
     summ = summarize(recs)
     print("worst axis, mean over the seeds (largest), um:")
     for m, d in summ.items():

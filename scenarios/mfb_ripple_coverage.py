@@ -117,11 +117,21 @@ def main(argv=None) -> int:
     if a.seeds[1] <= a.seeds[0]:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]}: no seed (HI must exceed LO)", file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     recs, scores = [], {}
+    bar = TerminalProgress("mfb_ripple_coverage: seeds")     # on a terminal only (stderr): the time left
+    seeds = range(*a.seeds)
+    total = len(a.conditions) * len(seeds)
+    bar(0, total)
     for c in a.conditions:
-        rc = [one_seed(c, s) for s in range(*a.seeds)]
+        rc = []
+        for s in seeds:
+            rc.append(one_seed(c, s))
+            bar(len(recs) + len(rc), total)
         recs += rc
         sc = scores[c] = score(rc)
+        bar.clear()
         print(f"{c}: all {sc['all']['within']}/{sc['all']['values']} = {sc['all']['share']:.3f}; " + ", ".join(
             f"{k} {sc[k]['within']}/{sc[k]['values']} = {sc[k]['share']:.3f} [{sc[k]['ci95'][0]:.3f}, "
             f"{sc[k]['ci95'][1]:.3f}]" for k in SHOWN) + f"; runs with a note {sum(1 for r in rc if r['scope'])}",
@@ -129,6 +139,7 @@ def main(argv=None) -> int:
         if a.out:
             with open(a.out, "w") as f:
                 json.dump({"format": FORMAT, "seeds": list(range(*a.seeds)), "scores": scores, "records": recs}, f)
+    bar.close()
     return 0
 
 

@@ -336,7 +336,12 @@ def main(argv=None) -> int:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]} / --noise-um {a.noise_um}: an empty seed range or a "
               f"negative noise", file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     recs = []
+    bar = TerminalProgress("selfcal_coverage: campaigns")     # on a terminal only (stderr): the time left
+    total, done = len(a.machines) * len(a.noise_um) * len(a.phase) * (a.seeds[1] - a.seeds[0]), 0
+    bar(0, total)
     for mn in a.machines:
         for nz in a.noise_um:
             for ph in a.phase:
@@ -345,6 +350,9 @@ def main(argv=None) -> int:
                     for bu in a.budget:
                         recs.append({"machine": mn, "noise_um": nz, "phase": ph, "budget": bu, "seed": sd}
                                     | record(c, declared=bu == "declared"))
+                    done += 1
+                    bar(done, total)
+                bar.clear()
                 for bu in a.budget:
                     p = pool([r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (mn, nz, ph, bu)])
                     print(f"{mn}, {nz:g} um, phase {ph}, {bu}: " + ", ".join(
@@ -358,6 +366,7 @@ def main(argv=None) -> int:
                        "pooled": [{"machine": m, "noise_um": n, "phase": ph, "budget": b} | pool(
                            [r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (m, n, ph, b)])
                                   for m, n, ph, b in cases]}, f, indent=1)
+    bar.close()
     return 0
 
 

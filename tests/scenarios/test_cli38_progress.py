@@ -45,3 +45,35 @@ def test_the_selfcal_runner_reports_its_stages(monkeypatch):
     regress.RUNNERS["selfcal"](study, study.seeds[0], progress=lambda d, t: calls.append((d, t)))
     assert [d for d, _ in calls][:3] == [0, *regress.SEED_SHARES["selfcal"][:2]]
     assert all(t == 100 for _, t in calls)
+
+
+class _Terminal:
+    """A stderr that says it is a terminal (the progress line draws only on one) and keeps what is drawn."""
+
+    def __init__(self):
+        self.text = ""
+
+    def isatty(self):
+        return True
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+def test_a_coverage_study_draws_its_progress_on_a_terminal_apart_from_its_lines(monkeypatch, capsys):
+    """python -m scenarios.selfcal_coverage counted nothing for its minutes; now a line with the time left on stderr
+    (a terminal only), erased before each printed result line, which stays on stdout alone."""
+    import sys
+
+    from scenarios import selfcal_coverage as sc
+
+    term = _Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    assert sc.main(["--machines", "nmv3000", "--seeds", "20", "21", "--noise-um", "0", "--budget", "residuals"]) == 0
+    out = capsys.readouterr().out
+    assert "selfcal_coverage: campaigns: [" in term.text and "1/1 (100 %)  done in" in term.text, term.text
+    assert "\r\033[K" in term.text                                  # erased before the result line
+    assert out.startswith("nmv3000, 0 um, phase drawn, residuals: ") and "campaigns:" not in out, out
