@@ -16,10 +16,10 @@ each table's magnitude), and every node value is scored against the injected tru
 
 Declared amplitudes are the truth's own (the nominal set's). ::
 
-    python -m scenarios.mfb_ripple_coverage none lin all drawn --seeds 1000 1200 --out rip.json
+    python -m scenarios.mfb_ripple_coverage none lin all drawn --seeds 1000 1200 --json rip.json
 
 Prints per condition the share of all values and of EXX, EBX, EYY, EZZ within U95 with the exact
-(Clopper-Pearson) 95 % interval; ``--out`` writes every seed's deviations and U95 (JSON). About
+(Clopper-Pearson) 95 % interval; ``--json`` writes every seed's deviations and U95 (JSON). About
 2-3 s of CPU per seed and condition.
 """
 
@@ -112,7 +112,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_ripple_coverage", description=__doc__.split("\n")[0])
     ap.add_argument("conditions", nargs="+", choices=CONDITIONS)
     ap.add_argument("--seeds", nargs=2, type=int, default=(1000, 1200), metavar=("LO", "HI"))
-    ap.add_argument("--out", help="JSON of every seed's deviations and U95, and the scores")
+    from scenarios.cli.options import option
+
+    # --out until session 38: vmt's --out is a log, plan or program, its JSON outputs --json (one name per thing)
+    option(ap, "--json", dest="out", old=("--out",), help="JSON of every seed's deviations and U95, and the scores")
     a = ap.parse_args(argv)
     if a.seeds[1] <= a.seeds[0]:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]}: no seed (HI must exceed LO)", file=sys.stderr)

@@ -310,7 +310,7 @@ def pool(records: list) -> dict:
 def main(argv=None) -> int:
     """``python -m scenarios.selfcal_coverage``: coverage per block over seeds, machines, noises, the ripple's
     phase (drawn per seed, or every screw at phase 0) and the budget (residuals only and/or declared); prints a
-    line per case, ``--out`` writes every campaign's figures and the pooled ones (JSON)."""
+    line per case, ``--json`` writes every campaign's figures and the pooled ones (JSON)."""
     import argparse
     import json
     import sys
@@ -326,7 +326,10 @@ def main(argv=None) -> int:
                     help="the screw ripple's phase: drawn per seed (the truth since session 27) or 0 for every screw")
     ap.add_argument("--budget", nargs="+", choices=("residuals", "declared"), default=["residuals", "declared"],
                     help="model-error budget: from the residuals alone, or with spec_subgrid() declared")
-    ap.add_argument("--out", help="JSON of every campaign's figures and the pooled ones")
+    from scenarios.cli.options import option
+
+    # --out until session 38: vmt's --out is a log, plan or program, its JSON outputs --json (one name per thing)
+    option(ap, "--json", dest="out", old=("--out",), help="JSON of every campaign's figures and the pooled ones")
     a = ap.parse_args(argv)
     bad = [m for m in a.machines if m not in MACHINES or "C" not in MACHINES[m]().strokes]
     if bad:

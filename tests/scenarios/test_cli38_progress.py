@@ -77,3 +77,14 @@ def test_a_coverage_study_draws_its_progress_on_a_terminal_apart_from_its_lines(
     assert "selfcal_coverage: campaigns: [" in term.text and "1/1 (100 %)  done in" in term.text, term.text
     assert "\r\033[K" in term.text                                  # erased before the result line
     assert out.startswith("nmv3000, 0 um, phase drawn, residuals: ") and "campaigns:" not in out, out
+
+
+def test_a_studys_json_is_json_and_its_old_out_still_works(tmp_path, capsys):
+    """The studies' JSON output is --json, as in every vmt command (it was --out, which is vmt's log, plan or
+    program); --out still works, hidden, and says its new name in one line. Refused before any seed is run."""
+    from scenarios import comprule_study as cs
+
+    for old in (False, True):
+        assert cs.main(["--machines", "none", "--seeds", "3", "3", "--out" if old else "--json", "x.json"]) == 2
+        err = capsys.readouterr().err
+        assert ("--out is renamed to --json" in err) == old and "HI must exceed LO" in err, err
