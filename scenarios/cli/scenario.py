@@ -147,7 +147,9 @@ def _mfb(args) -> int:
     if args.report:
         from scenarios.mfb_report import mfb_report
 
-        print(f"report (index.html, figures, recording.rrd) -> {mfb_report(args.report, d)}")
+        with progress_line(f"{args.name}: report, % of the work") as bar:
+            folder = mfb_report(args.report, d, progress=bar)
+        print(f"report (index.html, figures, recording.rrd) -> {folder}")
     if args.json:
         from core.atomic import write_json_atomic
 
