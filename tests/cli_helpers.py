@@ -41,7 +41,7 @@ def record_progress(monkeypatch) -> list:
     import scenarios.cli.guard as guard
 
     bars = []
-    monkeypatch.setattr(guard, "progress_line", lambda label: bars.append(ProgressRecorder(label)) or bars[-1])
+    monkeypatch.setattr(guard, "progress_line", lambda label, **kw: bars.append(ProgressRecorder(label)) or bars[-1])
     return bars
 
 

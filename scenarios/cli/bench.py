@@ -76,7 +76,7 @@ def run(args) -> int:
             earlier = None      # not a bench document: it is replaced, as before
     expected = expected_walls(earlier)
     label = "bench (seconds the last run took)" if expected else "bench (benchmarks)"
-    with progress_line(label) as bar:
+    with progress_line(label, counts_seconds=bool(expected)) as bar:
         doc = run_all(args.only, progress=bar, expected=expected)
     out = write_figures(doc if old is None else merge_documents(old, doc), args.out)
     for k, r in sorted(doc["figures"].items()):

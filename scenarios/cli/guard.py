@@ -573,12 +573,13 @@ def terminating_as_interrupt():
         signal.signal(signal.SIGTERM, signal.SIG_IGN if _TERM_TAKEN else before)
 
 
-def progress_line(label: str):
+def progress_line(label: str, **kw):
     """A :class:`viz.progress.TerminalProgress` (drawn on a terminal only; ``clear()`` before
-    the command prints a line, so its line never mixes with the output)."""
+    the command prints a line, so its line never mixes with the output); ``kw`` its options
+    (``counts_seconds``)."""
     from viz.progress import TerminalProgress
 
-    return TerminalProgress(label)
+    return TerminalProgress(label, **kw)
 
 
 def said(path) -> str:
