@@ -31,7 +31,6 @@ per seed and machine.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
@@ -140,7 +139,9 @@ def summarize(records: list) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m scenarios.comprule_study", description=__doc__.split("\n")[0])
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.comprule_study", description=__doc__.split("\n")[0])
     ap.add_argument("--machines", nargs="+", default=list(MACHINES), choices=MACHINES)
     ap.add_argument("--seeds", nargs=2, type=int, default=(1, 9), metavar=("LO", "HI"))
     from scenarios.cli.options import option

@@ -19,7 +19,6 @@ two free cores (a 5-axis run is about 2.5 s of CPU).
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
@@ -202,7 +201,9 @@ def main(argv=None) -> int:
 
     from scenarios.regress import load_study
 
-    ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_coverage", description=__doc__.split("\n")[0])
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.mfb_coverage", description=__doc__.split("\n")[0])
     ap.add_argument("study")
     ap.add_argument("--seeds", nargs=2, type=int, default=(1, 61), metavar=("LO", "HI"))
     ap.add_argument("--workers", type=int, default=1)

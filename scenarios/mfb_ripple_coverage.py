@@ -25,7 +25,6 @@ Prints per condition the share of all values and of EXX, EBX, EYY, EZZ within U9
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
@@ -109,7 +108,9 @@ def score(records: list) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_ripple_coverage", description=__doc__.split("\n")[0])
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.mfb_ripple_coverage", description=__doc__.split("\n")[0])
     ap.add_argument("conditions", nargs="+", choices=CONDITIONS)
     ap.add_argument("--seeds", nargs=2, type=int, default=(1000, 1200), metavar=("LO", "HI"))
     from scenarios.cli.options import option

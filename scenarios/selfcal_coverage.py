@@ -311,13 +311,14 @@ def main(argv=None) -> int:
     """``python -m scenarios.selfcal_coverage``: coverage per block over seeds, machines, noises, the ripple's
     phase (drawn per seed, or every screw at phase 0) and the budget (residuals only and/or declared); prints a
     line per case, ``--json`` writes every campaign's figures and the pooled ones (JSON)."""
-    import argparse
     import json
     import sys
 
     from sim.machines import MACHINES
 
-    ap = argparse.ArgumentParser(prog="python -m scenarios.selfcal_coverage",
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.selfcal_coverage",
                                  description="the self-calibration's U95 coverage per block against the exact simulator")
     ap.add_argument("--machines", nargs="+", default=["nmv3000", "mikron-ucp710"])
     ap.add_argument("--seeds", nargs=2, type=int, default=(20, 40), metavar=("LO", "HI"))

@@ -88,3 +88,20 @@ def test_a_studys_json_is_json_and_its_old_out_still_works(tmp_path, capsys):
         assert cs.main(["--machines", "none", "--seeds", "3", "3", "--out" if old else "--json", "x.json"]) == 2
         err = capsys.readouterr().err
         assert ("--out is renamed to --json" in err) == old and "HI must exceed LO" in err, err
+
+
+def test_a_studys_bad_input_is_one_line(capsys):
+    """The studies parse with vmt's own parser: a bad option is one line naming it, exit 2 (argparse's default
+    printed the usage, three lines, above it)."""
+    import pytest
+
+    from scenarios import comprule_study, mfb_coverage, mfb_ripple_coverage, selfcal_coverage
+
+    for mod, argv, says in ((comprule_study, ["--seeds", "x"], "argument --seeds: expected 2 arguments"),
+                            (mfb_coverage, [], "required: study"),
+                            (selfcal_coverage, ["--bogus"], "unrecognized arguments: --bogus"),
+                            (mfb_ripple_coverage, ["nonsense"], "invalid choice: 'nonsense'")):
+        with pytest.raises(SystemExit) as e:
+            mod.main(argv)
+        err = capsys.readouterr().err
+        assert e.value.code == 2 and err.count("\n") == 1 and says in err and "Traceback" not in err, err
