@@ -19,7 +19,6 @@ two free cores (a 5-axis run is about 2.5 s of CPU).
 
 from __future__ import annotations
 
-import argparse
 import sys
 
 import numpy as np
@@ -202,7 +201,9 @@ def main(argv=None) -> int:
 
     from scenarios.regress import load_study
 
-    ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_coverage", description=__doc__.split("\n")[0])
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.mfb_coverage", description=__doc__.split("\n")[0])
     ap.add_argument("study")
     ap.add_argument("--seeds", nargs=2, type=int, default=(1, 61), metavar=("LO", "HI"))
     ap.add_argument("--workers", type=int, default=1)
@@ -213,18 +214,29 @@ def main(argv=None) -> int:
         print(f"error: {a.study}: an mfb-3axis or mfb-5axis study is needed, got {study.identification}",
               file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     tasks = [(a.study, s) for s in range(*a.seeds)]
-    if a.workers > 1:
-        with ProcessPoolExecutor(a.workers) as ex:
-            runs = list(ex.map(_task, tasks))
-    else:
-        runs = [_task(t) for t in tasks]
-    dev, U = np.array([x[0] for x in runs]), np.array([x[1] for x in runs])
-    names = runs[0][2]
-    k_sim, passed = np.array([x[3] for x in runs]), np.array([x[4] for x in runs])
-    if a.out:
-        np.savez(a.out, dev=dev, U=U, names=names, seeds=np.arange(*a.seeds), k_sim=k_sim, passed=passed)
-    C, cnames = _model_cov(study, 1)
+    runs = []
+    # on a terminal only (stderr): the time left; the last step is the model's covariance (one more run)
+    with TerminalProgress("mfb_coverage: runs (each seed's, then the covariance's)") as bar:
+        bar(0, len(tasks) + 1)
+        if a.workers > 1:
+            with ProcessPoolExecutor(a.workers) as ex:
+                for r in ex.map(_task, tasks):
+                    runs.append(r)
+                    bar(len(runs), len(tasks) + 1)
+        else:
+            for t in tasks:
+                runs.append(_task(t))
+                bar(len(runs), len(tasks) + 1)
+        dev, U = np.array([x[0] for x in runs]), np.array([x[1] for x in runs])
+        names = runs[0][2]
+        k_sim, passed = np.array([x[3] for x in runs]), np.array([x[4] for x in runs])
+        if a.out:
+            np.savez(a.out, dev=dev, U=U, names=names, seeds=np.arange(*a.seeds), k_sim=k_sim, passed=passed)
+        C, cnames = _model_cov(study, 1)
+        bar(len(tasks) + 1, len(tasks) + 1)
     s = summarize(dev, U, names)
     print(describe(s, model_all_within(study, cov=C)))
     print(describe_lowest(s, share_ranges(C, cnames, len(runs))))

@@ -136,11 +136,17 @@ def main(argv=None) -> int:
         return 2
     kind, lo, hi, out = a[0], int(a[1]), int(a[2]), Path(a[3])
     out.parent.mkdir(parents=True, exist_ok=True)
-    for r in range(lo, hi):
-        rec = one(kind, r, out.parent)
-        with out.open("a") as f:
-            f.write(json.dumps(rec) + "\n")
-        print(kind, r, rec["rms_residual_um"], rec["lack_of_fit"]["p"], rec["within"], flush=True)
+    from viz.progress import TerminalProgress
+
+    with TerminalProgress("mfb_fit_study: truths") as bar:     # on a terminal only (stderr): the time left
+        bar(0, max(hi - lo, 0))
+        for r in range(lo, hi):
+            rec = one(kind, r, out.parent)
+            with out.open("a") as f:
+                f.write(json.dumps(rec) + "\n")
+            bar.clear()
+            print(kind, r, rec["rms_residual_um"], rec["lack_of_fit"]["p"], rec["within"], flush=True)
+            bar(r - lo + 1, hi - lo)
     return 0
 
 

@@ -52,15 +52,24 @@ def main(argv=None) -> int:
         print("usage: python -m scenarios.mfb_range_study NAME SEED_LO SEED_HI OUTDIR", file=sys.stderr)
         return 2
     name, lo, hi, out = a[0], int(a[1]), int(a[2]), Path(a[3])
+    from viz.progress import TerminalProgress
+
+    bar = TerminalProgress("mfb_range_study: closed loops")     # on a terminal only (stderr): the time left
+    total, done = 2 * max(hi - lo, 0), 0
+    bar(0, total)
     for rule in ("tangent", "held"):
         for seed in range(lo, hi):
             loop = one(name, seed, rule, out / f"{rule}-{seed}")
+            done += 1
+            bar.clear()
             for k in ("before", "per_axis_files", "volumetric"):
                 st = loop[k]["strokes"]
                 f = lambda d: " / ".join(f"{d[x]:.3f}" for x in "XYZ")  # noqa: E731
                 print(f"{rule:7s} {name} seed {seed} {k:14s} positioning outside the nodes "
                       f"{f(st['positioning_outside_max_um'])}; stroke box {f(st['volumetric_residual_um'])}; "
                       f"node box {f(loop[k]['volumetric_residual_um'])}", flush=True)
+            bar(done, total)
+    bar.close()
     return 0
 
 

@@ -16,16 +16,15 @@ each table's magnitude), and every node value is scored against the injected tru
 
 Declared amplitudes are the truth's own (the nominal set's). ::
 
-    python -m scenarios.mfb_ripple_coverage none lin all drawn --seeds 1000 1200 --out rip.json
+    python -m scenarios.mfb_ripple_coverage none lin all drawn --seeds 1000 1200 --json rip.json
 
 Prints per condition the share of all values and of EXX, EBX, EYY, EZZ within U95 with the exact
-(Clopper-Pearson) 95 % interval; ``--out`` writes every seed's deviations and U95 (JSON). About
+(Clopper-Pearson) 95 % interval; ``--json`` writes every seed's deviations and U95 (JSON). About
 2-3 s of CPU per seed and condition.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
@@ -109,19 +108,34 @@ def score(records: list) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m scenarios.mfb_ripple_coverage", description=__doc__.split("\n")[0])
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.mfb_ripple_coverage", description=__doc__.split("\n")[0])
     ap.add_argument("conditions", nargs="+", choices=CONDITIONS)
     ap.add_argument("--seeds", nargs=2, type=int, default=(1000, 1200), metavar=("LO", "HI"))
-    ap.add_argument("--out", help="JSON of every seed's deviations and U95, and the scores")
+    from scenarios.cli.options import option
+
+    # --out until session 38: vmt's --out is a log, plan or program, its JSON outputs --json (one name per thing)
+    option(ap, "--json", dest="out", old=("--out",), help="JSON of every seed's deviations and U95, and the scores")
     a = ap.parse_args(argv)
     if a.seeds[1] <= a.seeds[0]:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]}: no seed (HI must exceed LO)", file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     recs, scores = [], {}
+    bar = TerminalProgress("mfb_ripple_coverage: seeds")     # on a terminal only (stderr): the time left
+    seeds = range(*a.seeds)
+    total = len(a.conditions) * len(seeds)
+    bar(0, total)
     for c in a.conditions:
-        rc = [one_seed(c, s) for s in range(*a.seeds)]
+        rc = []
+        for s in seeds:
+            rc.append(one_seed(c, s))
+            bar(len(recs) + len(rc), total)
         recs += rc
         sc = scores[c] = score(rc)
+        bar.clear()
         print(f"{c}: all {sc['all']['within']}/{sc['all']['values']} = {sc['all']['share']:.3f}; " + ", ".join(
             f"{k} {sc[k]['within']}/{sc[k]['values']} = {sc[k]['share']:.3f} [{sc[k]['ci95'][0]:.3f}, "
             f"{sc[k]['ci95'][1]:.3f}]" for k in SHOWN) + f"; runs with a note {sum(1 for r in rc if r['scope'])}",
@@ -129,6 +143,7 @@ def main(argv=None) -> int:
         if a.out:
             with open(a.out, "w") as f:
                 json.dump({"format": FORMAT, "seeds": list(range(*a.seeds)), "scores": scores, "records": recs}, f)
+    bar.close()
     return 0
 
 

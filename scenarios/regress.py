@@ -899,14 +899,29 @@ def _cross_pocket(study: Study, seed: int):
     return m, art, plan, log
 
 
-def _selfcal(study: Study, seed: int) -> dict:
+#: Share (percent) of one seed's work done after each stage of a runner that has no finer count of its own, for
+#: ``vmt regress``'s time left within a seed (a shipped study has one or two seeds of 4-11 s: the line sat at 0/1
+#: with no time left until the end, session 38). Measured on the shipped studies (regress-selfcal-nmv3000: the
+#: campaign 0.8 s, the self-calibration 2.1 s, the truth in its gauge 0.4 s; regress-discover-nmv3000: the
+#: campaign 0.1-0.8 s of a 3.6-5 s seed, the rest discover's own count).
+SEED_SHARES = {"selfcal": (25, 88, 100), "discover": (15, 100)}
+
+
+def _stage(progress, done: int, total: int = 100) -> None:
+    if progress is not None:
+        progress(done, total)
+
+
+def _selfcal(study: Study, seed: int, progress=None) -> dict:
     """Cross-pocket campaign on the study's machine, self-calibration, truth in its gauge."""
     from core.selfcal import Grid, self_calibrate, yaw_for_chain
     from core.touches import from_log
     from scenarios.selfcal_coverage import Campaign, block_truth
 
     spec = study.machine
+    _stage(progress, 0)
     m, art, plan, log = _cross_pocket(study, seed)
+    _stage(progress, SEED_SHARES["selfcal"][0])
     noise_m = study.noise_um * 1e-6
     t = from_log(log.select(np.abs(log.col("nz")) <= 0.01))
     lo, hi, st = (v * 1e-3 for v in study.plan_value("grid_mm", [-110.0, 110.0, 22.0]))
@@ -915,6 +930,7 @@ def _selfcal(study: Study, seed: int) -> dict:
     sub = None if not dec else {k: (a * 1e-6, p * 1e-3) for k, (a, p) in dec.items()}
     res = self_calibrate(t, Grid.regular(lo, hi, st), yaw=yaw_for_chain(spec.config.chain), heights=heights,
                          subgrid=sub)
+    _stage(progress, SEED_SHARES["selfcal"][1])
     des = res.design
     raw, _ = block_truth(Campaign(m, t, art, plan, seed, noise_m), des)
     truth = des.to_gauge(raw)
@@ -932,12 +948,13 @@ def _selfcal(study: Study, seed: int) -> dict:
     return out
 
 
-def _mfb(study: Study, seed: int) -> dict:
+def _mfb(study: Study, seed: int, progress=None) -> dict:
     from core import volumetric as vol
     from scenarios import mfb
 
     runs = int(study.plan_value("mc_runs", 0))
-    r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=runs, machine=study.machine)
+    r = mfb.run(study.identification, seed=seed, noise_um=study.noise_um, mc_runs=runs, machine=study.machine,
+                progress=progress)
     # the joint covariance of the reported values: the run's linear propagation (probing noise, bar
     # calibration, placements; vmt-estimate/1, um^2 / urad^2, identification gauge) in the report's
     # ISO 230-1 form (straightness against its end-point line)
@@ -954,7 +971,7 @@ def _mfb(study: Study, seed: int) -> dict:
     return out
 
 
-def _positioning(study: Study, seed: int) -> dict:
+def _positioning(study: Study, seed: int, progress=None) -> dict:
     from core.positioning import arrange, iso230_2
     from sim.machine import Machine
     from sim.positioning import deviations_m, positioning_plan, schedule, simulate_positioning
@@ -1002,7 +1019,7 @@ def _positioning(study: Study, seed: int) -> dict:
     }
 
 
-def _discover(study: Study, seed: int) -> dict:
+def _discover(study: Study, seed: int, progress=None) -> dict:
     """The cross-pocket campaign written as a probe log and read by ``vmt discover``'s own code path; the
     causes its JSON report names (``findings[*].cause``): the only part of discover's output a study
     relies on, as its engine is being rewritten."""
@@ -1012,16 +1029,21 @@ def _discover(study: Study, seed: int) -> dict:
     from core.probelog import write_probe_log
     from scenarios.discover_run import run_discover
 
+    _stage(progress, 0)
     *_, log = _cross_pocket(study, seed)
+    first = SEED_SHARES["discover"][0]
+    _stage(progress, first)
     with tempfile.TemporaryDirectory(prefix="vmt-regress-") as d:
         p, j = Path(d) / "campaign.csv", Path(d) / "discover.json"
         write_probe_log(p, log)
-        run_discover(str(p), str(j))
+        run_discover(str(p), str(j), progress=None if progress is None else (
+            lambda k, n: progress(first + (100 - first) * k // max(n, 1), 100)))
         rep = json.loads(j.read_text(encoding="utf-8"))
     return {"cause": Causes(tuple(str(f["cause"]) for f in rep.get("findings", [])))}
 
 
-#: identification -> callable(study, seed) -> {quantity: Estimate (or Causes for discover)}
+#: identification -> callable(study, seed, progress=None) -> {quantity: Estimate (or Causes for discover)};
+#: ``progress(done, total)`` within the seed, where the runner counts its work
 RUNNERS = {"selfcal": _selfcal, "mfb-3axis": _mfb, "mfb-5axis": _mfb, "iso230-2": _positioning,
            "discover": _discover}
 
@@ -1202,15 +1224,19 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
         identification (:class:`Mutation` is one). The study's own
         ``[mutate]`` is applied first.
     progress : callable, optional
-        ``progress(done, total)`` once per seed.
+        ``progress(done, 100)``: the percent of the study's work done, the seeds in turn and each seed's own
+        stages within its share (its runner's count: :data:`SEED_SHARES`, the MFB run's steps).
     """
     checks, secs, all_est, sim, powers = [], [], {}, [], []
     run = RUNNERS[study.identification]
+    n = len(study.seeds)
     for j, seed in enumerate(study.seeds):
         if progress is not None:
-            progress(j, len(study.seeds))
+            progress(100 * j // n, 100)
         t0 = time.perf_counter()
-        est = run(study, seed)
+        within = None if progress is None else (
+            lambda k, m, j=j: progress(min(100 * j + 100 * k // max(m, 1), 100 * (j + 1)) // n, 100))
+        est = run(study, seed) if within is None else run(study, seed, progress=within)
         if study.mutation is not None:
             est = study.mutation(study.identification, est)
         if hook is not None:
@@ -1237,7 +1263,7 @@ def run_study(study: Study, *, hook=None, progress=None) -> StudyResult:
             checks.append(c)
         powers += [p for p in (power(r, est.get(r.quantity), seed, k_sim) for r in study.rules) if p is not None]
     if progress is not None:
-        progress(len(study.seeds), len(study.seeds))
+        progress(100, 100)
     return StudyResult(study, tuple(checks), tuple(secs), all_est, tuple(sim), tuple(powers))
 
 

@@ -310,14 +310,15 @@ def pool(records: list) -> dict:
 def main(argv=None) -> int:
     """``python -m scenarios.selfcal_coverage``: coverage per block over seeds, machines, noises, the ripple's
     phase (drawn per seed, or every screw at phase 0) and the budget (residuals only and/or declared); prints a
-    line per case, ``--out`` writes every campaign's figures and the pooled ones (JSON)."""
-    import argparse
+    line per case, ``--json`` writes every campaign's figures and the pooled ones (JSON)."""
     import json
     import sys
 
     from sim.machines import MACHINES
 
-    ap = argparse.ArgumentParser(prog="python -m scenarios.selfcal_coverage",
+    from scenarios.cli.guard import OneLineParser   # bad input: one line naming it, exit 2 (vmt's parser)
+
+    ap = OneLineParser(prog="python -m scenarios.selfcal_coverage",
                                  description="the self-calibration's U95 coverage per block against the exact simulator")
     ap.add_argument("--machines", nargs="+", default=["nmv3000", "mikron-ucp710"])
     ap.add_argument("--seeds", nargs=2, type=int, default=(20, 40), metavar=("LO", "HI"))
@@ -326,7 +327,10 @@ def main(argv=None) -> int:
                     help="the screw ripple's phase: drawn per seed (the truth since session 27) or 0 for every screw")
     ap.add_argument("--budget", nargs="+", choices=("residuals", "declared"), default=["residuals", "declared"],
                     help="model-error budget: from the residuals alone, or with spec_subgrid() declared")
-    ap.add_argument("--out", help="JSON of every campaign's figures and the pooled ones")
+    from scenarios.cli.options import option
+
+    # --out until session 38: vmt's --out is a log, plan or program, its JSON outputs --json (one name per thing)
+    option(ap, "--json", dest="out", old=("--out",), help="JSON of every campaign's figures and the pooled ones")
     a = ap.parse_args(argv)
     bad = [m for m in a.machines if m not in MACHINES or "C" not in MACHINES[m]().strokes]
     if bad:
@@ -336,7 +340,12 @@ def main(argv=None) -> int:
         print(f"error: --seeds {a.seeds[0]} {a.seeds[1]} / --noise-um {a.noise_um}: an empty seed range or a "
               f"negative noise", file=sys.stderr)
         return 2
+    from viz.progress import TerminalProgress
+
     recs = []
+    bar = TerminalProgress("selfcal_coverage: campaigns")     # on a terminal only (stderr): the time left
+    total, done = len(a.machines) * len(a.noise_um) * len(a.phase) * (a.seeds[1] - a.seeds[0]), 0
+    bar(0, total)
     for mn in a.machines:
         for nz in a.noise_um:
             for ph in a.phase:
@@ -345,6 +354,9 @@ def main(argv=None) -> int:
                     for bu in a.budget:
                         recs.append({"machine": mn, "noise_um": nz, "phase": ph, "budget": bu, "seed": sd}
                                     | record(c, declared=bu == "declared"))
+                    done += 1
+                    bar(done, total)
+                bar.clear()
                 for bu in a.budget:
                     p = pool([r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (mn, nz, ph, bu)])
                     print(f"{mn}, {nz:g} um, phase {ph}, {bu}: " + ", ".join(
@@ -358,6 +370,7 @@ def main(argv=None) -> int:
                        "pooled": [{"machine": m, "noise_um": n, "phase": ph, "budget": b} | pool(
                            [r for r in recs if (r["machine"], r["noise_um"], r["phase"], r["budget"]) == (m, n, ph, b)])
                                   for m, n, ph, b in cases]}, f, indent=1)
+    bar.close()
     return 0
 
 

@@ -55,6 +55,11 @@ class TerminalProgress:
         Minimum time between redraws (the last call always draws).
     clock : callable, optional
         Monotonic clock in s (tests pass a fake one).
+    counts_seconds : bool
+        ``done`` and ``total`` count the seconds an earlier run took (``vmt bench``'s benchmarks, weighted by
+        their last wall times): before the first item is done, the time left is that run's, less the time
+        spent since (said "as the last run"); without it there is no estimate until an item is done, and a
+        single long item (``vmt bench --only X``) showed none at all.
 
     Notes
     -----
@@ -66,8 +71,10 @@ class TerminalProgress:
     """
 
     def __init__(self, label: str, *, stream: TextIO | None = None,
-                 min_interval_s: float = 0.2, clock: Callable[[], float] = time.monotonic):
+                 min_interval_s: float = 0.2, clock: Callable[[], float] = time.monotonic,
+                 counts_seconds: bool = False):
         self.label = label
+        self.counts_seconds = bool(counts_seconds)
         self.stream = sys.stderr if stream is None else stream
         isatty = getattr(self.stream, "isatty", None)
         self.enabled = bool(isatty()) if callable(isatty) else False
@@ -100,6 +107,8 @@ class TerminalProgress:
         if done > self.done_before and total > 0:
             left = elapsed / (done - self.done_before) * (total - done)
             return f"{head}  ~{format_duration(left)} left"
+        if self.counts_seconds and total > done:
+            return f"{head}  ~{format_duration(max(total - done - elapsed, 0.0))} left as the last run"
         return head
 
     def __call__(self, done: int, total: int) -> None:

@@ -12,7 +12,9 @@ def register(sub) -> None:
     # with a line naming the new option
     option(p, "--json", dest="out", metavar="OUT", default="bench/results.json", old=("--out",),
            help="JSON file to write (bench/results.json)")
-    p.add_argument("--only", action="append", default=[], help="run only the benchmarks containing this text (a benchmark's exact name, e.g. bench_discover, selects it alone)")
+    p.add_argument("--only", action="append", default=[],
+                   help="run only the benchmarks containing this text (a benchmark's exact name, e.g. "
+                        "bench_discover, selects it alone)")
     p.add_argument("--readme", metavar="FILE", default=None,
                    help="also rewrite FILE's performance table (between its bench-table markers) from the JSON")
     p.add_argument("--merge", action="store_true",
@@ -74,7 +76,7 @@ def run(args) -> int:
             earlier = None      # not a bench document: it is replaced, as before
     expected = expected_walls(earlier)
     label = "bench (seconds the last run took)" if expected else "bench (benchmarks)"
-    with progress_line(label) as bar:
+    with progress_line(label, counts_seconds=bool(expected)) as bar:
         doc = run_all(args.only, progress=bar, expected=expected)
     out = write_figures(doc if old is None else merge_documents(old, doc), args.out)
     for k, r in sorted(doc["figures"].items()):

@@ -82,9 +82,9 @@ def run(args) -> int:
               f"({counted(rep['pairs'], 'pair')}, "
               f"e.g. {ex}): two writers on one log, or a plan that repeats targets?")
     for t in s["turned_within_setup"]:
-        print(f"  turned   set-up {t['setup']!r}: {t['axis']} varies within it ({t['min_deg']:g}..{t['max_deg']:g} deg: row "
-              f"{t['first_row']} at {t['first_deg']:g}, row {t['row']} at {t['row_deg']:g}): identify and discover take one indexing per set-up and refuse it "
-              f"(a 5-axis placement may turn on purpose)")
+        print(f"  turned   set-up {t['setup']!r}: {t['axis']} varies within it ({t['min_deg']:g}..{t['max_deg']:g} "
+              f"deg: row {t['first_row']} at {t['first_deg']:g}, row {t['row']} at {t['row_deg']:g}): identify and "
+              f"discover take one indexing per set-up and refuse it (a 5-axis placement may turn on purpose)")
     for w in s["warnings"]:
         print(f"  warning  {w}")
     if args.json is not None:

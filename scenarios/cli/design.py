@@ -28,7 +28,8 @@ def register(sub) -> None:
            help="reference C angles to compare, comma-separated, deg ('' = none)")
     add_noise_arg(p, "1.38: the self-calibration paper's", old=("--u-probe-um",), default=1.38)
     p.add_argument("--measure", choices=("gauge", "form"), default="gauge",
-                   help="minimise U95 of G as identified (gauge, default: the paper's section-6 reading) or of its form")
+                   help="minimise U95 of G as identified (gauge, default: the paper's section-6 reading) or of its "
+                        "form")
     p.add_argument("--dask", default=None, metavar="tcp://HOST:PORT", help="evaluate sweeps on this Dask cluster")
     p.add_argument("--workers", type=int, default=1, help="local processes when no --dask (1 = serial)")
     p.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON")
@@ -93,7 +94,8 @@ def run(args) -> int:
               f" gain x{r.gain:.3f}")
     if args.json:
         write_json_atomic(args.json, special=True, obj={
-            "format": DESIGN_FORMAT, "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4), "measure": args.measure,
+            "format": DESIGN_FORMAT, "c_deg": list(r.c_deg), "max_u95_um": round(r.max_U95_m * 1e6, 4),
+            "measure": args.measure,
             "reference_deg": list(r.reference_deg) if r.reference_deg else None,
             "reference_max_u95_um": None if r.reference_max_U95_m is None else round(r.reference_max_U95_m * 1e6, 4),
             "gain": r.gain, "evaluations": r.evaluations, "step_deg": r.step_deg,

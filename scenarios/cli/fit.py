@@ -115,9 +115,11 @@ def run(args) -> int:
           f"(refused beyond {NORMAL_AGREE_MAX_DEG:g} deg)")
     if args.json:
         tg = log.col("target")[r.rows].astype(str).tolist()
-        rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature, "setup": args.setup,
+        rep = {"format": FIT_FORMAT, "log": str(args.log), "kind": r.kind, "n": r.n, "feature": args.feature,
+               "setup": args.setup,
                "values": v, "u95": r.u95, "u95_scatter": r.u95_scatter, "u95_rounding": r.u95_rounding,
-               "printing_step_mm": list(r.printing_step_mm), "form": FORM[r.kind], "form_um": r.form_um, "rms_um": r.rms_um,
+               "printing_step_mm": list(r.printing_step_mm), "form": FORM[r.kind], "form_um": r.form_um,
+               "rms_um": r.rms_um,
                "dof": r.dof, "stylus_r_mm": r.stylus_r_mm, "stylus_r_source": r.stylus_r_source,
                "log_stylus_r_mm": r.log_stylus_r_mm, "normal_angle_deg": r.normal_angle_deg,
                "touches": [{"row": int(i), "target": t, "residual_um": float(e)}

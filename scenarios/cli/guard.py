@@ -126,6 +126,15 @@ class OneLineParser(argparse.ArgumentParser):
         kw["formatter_class"] = _whole_names(kw.get("formatter_class", argparse.HelpFormatter))
         super().__init__(*args, **kw)
 
+    def add_argument(self, *args, **kw):  # noqa: D102
+        # an option of options.PLACEHOLDERS shows its one placeholder in every command (unless given its own:
+        # the walk in tests/scenarios/test_cli_options.py refuses a second one)
+        from scenarios.cli.options import PLACEHOLDERS
+
+        if args and args[0] in PLACEHOLDERS and "metavar" not in kw and kw.get("action") in (None, "store"):
+            kw["metavar"] = PLACEHOLDERS[args[0]]
+        return super().add_argument(*args, **kw)
+
     def error(self, message):  # noqa: D102 - argparse's hook
         m = re.fullmatch(r"argument (--[\w-]+)(?:/[^:]*)?: expected one argument", message)
         if m:   # argparse takes a value such as -110:110 for an option: '--travel-mm -100:100' lands here
@@ -564,12 +573,13 @@ def terminating_as_interrupt():
         signal.signal(signal.SIGTERM, signal.SIG_IGN if _TERM_TAKEN else before)
 
 
-def progress_line(label: str):
+def progress_line(label: str, **kw):
     """A :class:`viz.progress.TerminalProgress` (drawn on a terminal only; ``clear()`` before
-    the command prints a line, so its line never mixes with the output)."""
+    the command prints a line, so its line never mixes with the output); ``kw`` its options
+    (``counts_seconds``)."""
     from viz.progress import TerminalProgress
 
-    return TerminalProgress(label)
+    return TerminalProgress(label, **kw)
 
 
 def said(path) -> str:

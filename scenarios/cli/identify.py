@@ -222,7 +222,8 @@ def _dominant(res, t, file_row) -> None:
     named = ", ".join(f"row {int(file_row[i])} (set-up {t.setup_ids[t.setup[i]]!r}, target "
                       f"{t.target_ids[t.target[i]]!r}) {r[i] * 1e6:+.1f} um" for i in dom[:DOMINANT_MOST])
     more = f" and {dom.size - DOMINANT_MOST} more" if dom.size > DOMINANT_MOST else ""
-    print(f"residual dominated by {counted(int(dom.size), 'touch', 'touches')}, {'each ' * (dom.size > 1)}over {DOMINANT_Z:g} times the "
+    print(f"residual dominated by {counted(int(dom.size), 'touch', 'touches')}, {'each ' * (dom.size > 1)}over "
+          f"{DOMINANT_Z:g} times the "
           f"RMS of the smaller ones: {named}{more}; {100 * share:.1f} % of the residual sum of squares, the other "
           f"touches' RMS {np.sqrt(np.mean(rest ** 2)) * 1e6:.3f} um. Every figure above rests on them: check those "
           "readings (a typed value? vmt discover names such outliers)")
@@ -246,6 +247,14 @@ def _declared(args) -> dict:
             raise ConfigError(f"--declared-ripple-{unit}-mm: {k} is not a table of the self-calibration "
                               f"(one of {', '.join(RIPPLE_TABLES[unit])})")
     return out
+
+
+#: Percent of ``vmt identify``'s work on a multi-feature bar's log done when the bars' points of interest are
+#: fitted and when every measurement's noise gain is computed (:func:`core.mfblog.read_mfb_log` counts them); the
+#: identification's three steps share the rest evenly. Measured on ``vmt simulate mfb-3axis``'s log with --mc 500
+#: (session 38, load 3-11: the line read 0/4 for the 7.5 s of the reading, then "~23 s left" of 11 s): reading
+#: 7.5 s of 18 s, the identification's steps 4.4, 5.6 and 0.8 s.
+MFB_IDENTIFY_SHARES = (15, 40)
 
 
 def _run_mfb(args, log, bar) -> int:
@@ -278,7 +287,8 @@ def _run_mfb(args, log, bar) -> int:
         J_mm, _ = tool_offset_of_log(log, args.tool_offset_mm)
         log = replace(log, meta={**log.meta, TOOL_OFFSET_KEY: ",".join(repr(float(v)) for v in J_mm)})
     cert = _bar_certificate(args)
-    ml = read_mfb_log(log, cert)
+    fitted, read = MFB_IDENTIFY_SHARES
+    ml = read_mfb_log(log, cert, progress=lambda k, n: bar(fitted + (read - fitted) * k // max(n, 1), 100))
     sigma = args.noise_um * 1e-6 if args.noise_um is not None else ml.sigma_probe_m
     if sigma is None:
         raise ConfigError(f"{src}: no probing noise for the U95: give --noise-um (k = 1) or the log's "
@@ -287,13 +297,14 @@ def _run_mfb(args, log, bar) -> int:
     from core.state import log_machine
     machine = log_machine(log.meta)[0]   # the plan's machine, not the controller's name, as the planar route
     del log
-    bar(1, 4)
     from scenarios.cli.guard import about_file
     from scenarios.mfb import identify_log
 
     with about_file(src):   # 'rank deficient by 2 ...': of this log's plan
         doc = identify_log(ml, sigma_m=sigma, mc_runs=args.mc, rng=np.random.default_rng(args.seed or 0),
-                           source=src, machine=machine, progress=lambda k, n: bar(1 + k, 4), declared_ripple=declared)
+                           source=src, machine=machine,
+                           progress=lambda k, n: bar(read + (100 - read) * k // max(n, 1), 100),
+                           declared_ripple=declared)
     doc["input_warnings"] = warned
     from core.atomic import write_json_atomic
 

@@ -94,5 +94,6 @@ def run(args) -> int:
         print(f"note: the transcript has {log.meta['transcript_reports']}")
         print(f"note: what stopped it: {log.meta['stop_reason']}")
     if plan is None:
-        print(f"note: no plan: {log.meta.get('plan_plan', 'built from the file')}")   # the plan's 'plan', kept as plan_plan
+        # the plan's 'plan', kept as plan_plan
+        print(f"note: no plan: {log.meta.get('plan_plan', 'built from the file')}")
     return 0

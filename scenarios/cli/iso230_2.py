@@ -42,17 +42,22 @@ def register(sub) -> None:
                         "(last target - 360 .. first target + 360); beyond its lines LinuxCNC holds the end lines, "
                         "so a joint that turns further (a WRAPPED_ROTARY axis counts turns) needs this")
     g = p.add_argument_group("uncertainty of the test (ISO/TR 230-9 style; any of these adds U (k=2) per figure)")
-    g.add_argument("--u-instrument-um", type=float, metavar="UM", help="instrument, length-independent, standard uncertainty, µm")
-    g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M", help="instrument, per m of travel, standard uncertainty, µm/m")
-    g.add_argument("--misalignment-urad", type=float, metavar="URAD", help="largest beam-to-axis angle (cosine error), µrad")
-    g.add_argument("--temp-c", type=float, metavar="C", help="mean temperature of the machine scale during the test, °C (20), for the uncertainty "
-                                                         "only: the readings must already be corrected to 20 °C (the "
-                                                         "laser's material-temperature compensation); vmt corrects nothing "
-                                                         "and warns with L alpha (T - 20) when T is not 20")
+    g.add_argument("--u-instrument-um", type=float, metavar="UM",
+                   help="instrument, length-independent, standard uncertainty, µm")
+    g.add_argument("--u-instrument-um-per-m", type=float, metavar="UM_PER_M",
+                   help="instrument, per m of travel, standard uncertainty, µm/m")
+    g.add_argument("--misalignment-urad", type=float, metavar="URAD",
+                   help="largest beam-to-axis angle (cosine error), µrad")
+    g.add_argument("--temp-c", type=float, metavar="C",
+                   help="mean temperature of the machine scale during the test, °C (20), for the uncertainty only: the "
+                        "readings must already be corrected to 20 °C (the laser's material-temperature "
+                        "compensation); vmt corrects nothing and warns with L alpha (T - 20) when T is not 20")
     g.add_argument("--u-temp-k", type=float, metavar="K", help="standard uncertainty of that temperature, K")
-    g.add_argument("--alpha-per-k", type=float, metavar="PER_K", help="expansion coefficient of the correction applied to the readings, 1/K (11.5e-6)")
+    g.add_argument("--alpha-per-k", type=float, metavar="PER_K",
+                   help="expansion coefficient of the correction applied to the readings, 1/K (11.5e-6)")
     g.add_argument("--u-alpha-per-k", type=float, metavar="PER_K", help="its standard uncertainty, 1/K")
-    g.add_argument("--eve-um", type=float, metavar="UM", help="environmental variation error E_VE (drift check range), µm")
+    g.add_argument("--eve-um", type=float, metavar="UM",
+                   help="environmental variation error E_VE (drift check range), µm")
     p.set_defaults(func=run)
 
 

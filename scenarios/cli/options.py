@@ -23,6 +23,16 @@ import sys
 UNIT_SUFFIXES = ("-mm", "-um", "-m", "-s", "-deg", "-urad", "-ppm", "-mm-min", "-um-per-h", "-um-per-m",
                  "-per-k", "-k", "-c")
 
+#: The one placeholder an option shows in every command's usage and help (``--report DIR`` in discover, iso230-2,
+#: scenario and vcmm alike; it read ``--report REPORT`` in three and ``--report DIR`` in one, ``--json`` OUT,
+#: JSON_OUT or JSON). :class:`scenarios.cli.guard.OneLineParser` gives an option of this table its placeholder when
+#: the command gives none; ``tests/scenarios/test_cli_options.py`` refuses a name shown with two placeholders, and a
+#: folder (``DIR``) where a file goes or a file where a folder goes.
+PLACEHOLDERS = {"--json": "OUT", "--out": "OUT", "--junit": "OUT", "--report": "DIR", "--out-dir": "DIR",
+                "--comp": "DIR", "--apply-comp": "DIR", "--plan": "PLAN", "--machine": "NAME|FILE",
+                "--bar-calibration": "FILE", "--seed": "SEED", "--mc": "N",
+                "--clearance-mm": "CLEARANCE_MM", "--overtravel-mm": "OVERTRAVEL_MM"}
+
 
 class Renamed(argparse.Action):
     """An old option name: still works (same destination), prints one line on stderr naming the new one."""
@@ -53,7 +63,7 @@ def option(p, name: str, *args, old: tuple[str, ...] = (), **kw) -> argparse.Act
     (:class:`scenarios.cli.guard.OneLineParser`), so that either name satisfies it.
     """
     if kw.get("action") not in ("store_true", "store_false") and "metavar" not in kw:
-        kw["metavar"] = name.lstrip("-").upper().replace("-", "_")
+        kw["metavar"] = PLACEHOLDERS.get(name, name.lstrip("-").upper().replace("-", "_"))
     if old and kw.get("required"):
         kw["help"] = kw.get("help", "") + " (required)"
         kw["required"] = False
@@ -246,7 +256,8 @@ def add_mc_arg(p, default_text: str) -> None:
     p.add_argument("--mc", type=int, default=None, metavar="N",
                    help=f"Monte Carlo runs (JCGM 101: each run draws every input once and identifies again; the "
                         f"U95 in identify and scenario cross-pocket-uncertainty: 2 x the runs' std (Gaussian errors: "
-                        f"probing noise through a linear estimator); in scenario mfb-*: the half-width of the runs' 2.5-97.5 %% interval), at "
+                        f"probing noise through a linear estimator); in scenario mfb-*: the half-width of the runs' "
+                        f"2.5-97.5 %% interval), at "
                         f"least {MC_MIN_RUNS} ({default_text})")
 
 
@@ -389,8 +400,8 @@ def _ripple_symbols(angular: bool) -> tuple:
 def add_declared_ripple_args(p, um_help: str, urad_help: str) -> None:
     """The two options ``--declared-ripple-um-mm`` (dest ``declared_ripple``) and
     ``--declared-ripple-urad-mm`` (``declared_ripple_urad``) on parser ``p``, with each command's help;
-    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once (shared options live here: a command module
-    is a leaf, CONTRIBUTING.md)."""
+    :func:`declared_ripples` reads them. ``vmt scenario`` and ``vmt identify`` define them here, once (shared
+    options live here: a command module is a leaf, CONTRIBUTING.md)."""
     p.add_argument("--declared-ripple-um-mm", default=None, metavar="SYM=UM:MM,...", dest="declared_ripple",
                    help=um_help)
     p.add_argument("--declared-ripple-urad-mm", default=None, metavar="SYM=URAD:MM,...", dest="declared_ripple_urad",

@@ -35,8 +35,9 @@ def register(sub) -> None:
                         "is logged less J, and the log records J (tool_offset_mm); a --resume must give the same J. "
                         "Not for virtual: (its positions are the tip centre's)")
     p.add_argument("--dry-run", action="store_true", help="print the program, move nothing")
-    p.add_argument("--resume", action="store_true", help="continue the log --out where it stops (refused, nothing moved, when the "
-                        "controller lost the log's machine position: then add --home-cycle)")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the log --out where it stops (refused, nothing moved, when the controller lost the "
+                        "log's machine position: then add --home-cycle)")
     p.add_argument("--unlock", action="store_true", help="send $X if the controller is in alarm")
     option(p, "--home-cycle", dest="home", action="store_true", old=("--home",),
            help="send $H (the homing cycle) before probing")

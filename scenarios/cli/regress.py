@@ -23,12 +23,12 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from core.atomic import write_json_atomic, write_text_atomic
-    from scenarios.cli.guard import said
+    from scenarios.cli.guard import progress_line, said
     from scenarios.regress import junit_xml, load_study, run_study
-    from viz.progress import TerminalProgress
 
     study = load_study(args.study)
-    with TerminalProgress("regress") as bar:
+    seeds = f"{len(study.seeds)} seed{'s' if len(study.seeds) != 1 else ''}"
+    with progress_line(f"regress ({seeds}): % of the work") as bar:
         res = run_study(study, progress=bar)
     print(f"{args.study}: {study.name} ({study.identification} on {study.machine.config.name}, "
           f"seeds {', '.join(map(str, study.seeds))}, noise {study.noise_um:g} um k=1"

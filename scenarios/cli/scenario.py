@@ -147,7 +147,9 @@ def _mfb(args) -> int:
     if args.report:
         from scenarios.mfb_report import mfb_report
 
-        print(f"report (index.html, figures, recording.rrd) -> {mfb_report(args.report, d)}")
+        with progress_line(f"{args.name}: report, % of the work") as bar:
+            folder = mfb_report(args.report, d, progress=bar)
+        print(f"report (index.html, figures, recording.rrd) -> {folder}")
     if args.json:
         from core.atomic import write_json_atomic
 
@@ -290,7 +292,8 @@ def register(sub) -> None:
     p.add_argument("--comp", default=None, metavar="DIR",
                    help="mfb scenarios: write the LinuxCNC per-axis compensation files and the vmt JSON tables here "
                         "(a .comp file replaces the joint's BACKLASH and any earlier COMP_FILE, and is right on its "
-                        "axis's line through readings 0 of the other axes, or --comp-line-mm's: README 'Compensation files')")
+                        "axis's line through readings 0 of the other axes, or --comp-line-mm's: README "
+                        "'Compensation files')")
     p.add_argument("--comp-line-mm", default=None, metavar="X,Y,Z", dest="comp_line_mm",
                    help="mfb scenarios, with --comp: the point the .comp files' lines pass through, readings "
                         "(stylus-tip centre, machine frame), mm: X.comp carries X's error along X at this Y and Z "

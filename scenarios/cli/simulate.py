@@ -54,7 +54,8 @@ def register(sub) -> None:
 
 
 def _catalogue_text(text: str) -> str:
-    """``sim.catalog.describe()`` with, under the catalogue's ``mfb``, what its log is for (:data:`MFB_CATALOGUE_HELP`)."""
+    """``sim.catalog.describe()`` with, under the catalogue's ``mfb``, what its log is for
+    (:data:`MFB_CATALOGUE_HELP`)."""
     lines = text.split("\n")
     at = next((i for i, ln in enumerate(lines) if ln.startswith("mfb ")), None)
     if at is None:      # pragma: no cover - the catalogue has its bar
@@ -192,8 +193,8 @@ def _campaign(args, bar):
 
 # --------------------------------------------------------------------------- vmt simulate positioning
 #: Options only ``vmt simulate positioning`` takes (dest names).
-POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle_kind", "overrun_mm", "move_feed", "dwell_s", "scatter_um",
-                    "line_mm", "reversal_um", "reversal_sense", "drift_um_per_h", "drift_tau_s")
+POSITIONING_ONLY = ("axis", "targets", "travel_mm", "cycles", "cycle_kind", "overrun_mm", "move_feed", "dwell_s",
+                    "scatter_um", "line_mm", "reversal_um", "reversal_sense", "drift_um_per_h", "drift_tau_s")
 
 
 def _add_positioning_options(p) -> None:

@@ -207,13 +207,17 @@ def test_vmt_bench_takes_the_time_left_from_its_out_file(monkeypatch, tmp_path):
     real = sb.run_all
     monkeypatch.setattr(sb, "run_all", lambda only=None, progress=None, expected=None:
                         seen.append((callable(progress), expected)) or real(only, progress, expected))
+    import scenarios.cli.guard as guard
+
+    lines, line = [], guard.progress_line       # the line counts the last run's seconds (session 38) when it has them
+    monkeypatch.setattr(guard, "progress_line", lambda label, **kw: lines.append(kw) or line(label, **kw))
     out = tmp_path / "r.json"
     assert main(["bench", "--json", str(out)]) == 0
-    assert seen[-1] == (True, {})
+    assert seen[-1] == (True, {}) and lines[-1] == {"counts_seconds": False}
     out.write_text(json.dumps({"format": sb.FORMAT, "meta": {}, "figures": {
         "bench_fakebench_a_wall_s": {"value": 12.5, "bench": "bench_fakebench_a"}}}))
     assert main(["bench", "--json", str(out)]) == 0          # a last run's file
-    assert seen[-1] == (True, {"bench_fakebench_a": 12.5})
+    assert seen[-1] == (True, {"bench_fakebench_a": 12.5}) and lines[-1] == {"counts_seconds": True}
     out.write_text("not json")
     assert main(["bench", "--json", str(out)]) == 0
     assert seen[-1] == (True, {}) and json.loads(out.read_text())["figures"]["a_s"]["value"] == 1.0

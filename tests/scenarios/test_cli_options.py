@@ -183,6 +183,98 @@ def test_the_walk_fails_on_a_name_with_two_meanings():
     assert [x.split(":")[0] for x in meaning_problems(q)] == ["--wait"]
 
 
+#: Names shown with another placeholder on purpose, and why (each one a narrower value, said in the help).
+PLACEHOLDER_EXCEPTIONS = {"--grid-mm": "discover takes the STEP form only (its search places the nodes; "
+                                       "core.discover's grid_step_mm), identify and design STEP or x0:x1:step"}
+
+#: Other spellings of a concept vmt already names, and vmt's name for it (session 38, cli38: the same thing is
+#: not spelled two ways in two commands; a new option under one of these names fails the walk).
+SYNONYMS = {"--output": "--out", "-o": "--out", "--out-file": "--out", "--output-file": "--out",
+            "--outdir": "--out-dir", "--output-dir": "--out-dir", "--dir": "--out-dir",
+            "--json-out": "--json", "--out-json": "--json", "--json-file": "--json",
+            "--report-dir": "--report", "--html": "--report",
+            "--seeds": "--seed", "--random-seed": "--seed", "--rng-seed": "--seed",
+            "--runs": "--mc", "--mc-runs": "--mc", "--n-mc": "--mc", "--monte-carlo": "--mc",
+            "--sigma-um": "--noise-um", "--u-probe-um": "--noise-um", "--probe-noise-um": "--noise-um",
+            "--jobs": "--workers", "-j": "--workers", "--processes": "--workers", "--n-workers": "--workers",
+            "--threads": "--workers", "--cluster": "--dask", "--scheduler": "--dask",
+            "--grid-step-mm": "--grid-mm", "--step-mm": "--grid-mm",
+            "--stylus-radius-mm": "--stylus-r-mm", "--tip-r-mm": "--stylus-r-mm",
+            "--tool-offsets-mm": "--tool-offset-mm", "--j-mm": "--tool-offset-mm",
+            "--error-set": "--errors", "--truth": "--errors", "--machine-file": "--machine",
+            "--log": "LOG (a positional argument)", "--input": "the command's positional argument"}
+
+
+def placeholder_problems(parser=None) -> list:
+    """Option names shown with two placeholders across the commands (``--report REPORT`` beside ``--report DIR``)."""
+    shown = {}
+    for name, uses in _options(parser).items():
+        for command, a in uses:
+            if a.nargs != 0:
+                shown.setdefault(name, {}).setdefault(str(a.metavar or a.dest.upper()), []).append(command)
+    said = lambda ms: ", ".join(f"{m} ({', '.join(c)})" for m, c in sorted(ms.items()))  # noqa: E731
+    return [f"{n}: shown as {said(ms)}" for n, ms in sorted(shown.items())
+            if len(ms) > 1 and n not in PLACEHOLDER_EXCEPTIONS]
+
+
+def folder_problems(parser=None, files=None) -> list:
+    """Outputs shown as what they are: a folder of ``scenarios.cli.guard.FILES`` shows ``DIR``, a file never does,
+    and a JSON file written is ``--json`` (not ``--out``, ``--json-out``: one name for one thing)."""
+    from scenarios.cli.guard import FILES
+
+    files = FILES if files is None else files
+    bad = []
+    for name, uses in _options(parser).items():
+        for command, a in uses:
+            _ins, outs, dirs = files.get(command.split()[1] if " " in command else command, ((), (), ()))
+            shown = str(a.metavar or a.dest.upper())
+            if a.dest in dirs and shown != "DIR":
+                bad.append(f"{command} {name}: a folder, shown as {shown} (DIR)")
+            if a.dest in outs and shown == "DIR":
+                bad.append(f"{command} {name}: a file, shown as DIR")
+            if a.dest in outs and name != "--json" and "JSON" in (a.help or "").split(",")[0].upper().split():
+                bad.append(f"{command} {name}: writes JSON, and a JSON output is --json")
+    return bad
+
+
+def synonym_problems(parser=None) -> list:
+    """Visible options spelling a concept another way than vmt names it (:data:`SYNONYMS`)."""
+    return [f"{c} {n}: vmt says {SYNONYMS[n]}" for n, uses in sorted(_options(parser).items()) for c, _a in uses
+            if n in SYNONYMS]
+
+
+def test_an_option_shows_one_placeholder_everywhere():
+    bad = placeholder_problems()
+    assert not bad, "\n".join(bad)
+    assert _options()["--report"] and all(a.metavar == "DIR" for _c, a in _options()["--report"])
+
+
+def test_folders_say_dir_and_json_is_json():
+    bad = folder_problems()
+    assert not bad, "\n".join(bad)
+
+
+def test_a_concept_is_not_spelled_two_ways():
+    bad = synonym_problems()
+    assert not bad, "\n".join(bad)
+
+
+def test_the_walk_fails_on_a_second_placeholder_a_folder_shown_as_a_file_and_a_synonym():
+    """The three checks themselves, on made-up parsers: clean, then each with one planted violation."""
+    p, a, b = _fabricated()
+    files = {"a": ((), ("json",), ("report",)), "b": ((), ("json",), ("report",))}
+    assert placeholder_problems(p) == folder_problems(p, files) == synonym_problems(p) == []
+    a.add_argument("--report", metavar="DIR", help="folder for a readable report")
+    b.add_argument("--report", metavar="REPORT", help="folder for a readable report")
+    assert placeholder_problems(p) == ["--report: shown as DIR (vmt a), REPORT (vmt b)"]
+    assert folder_problems(p, files) == ["vmt b --report: a folder, shown as REPORT (DIR)"]
+    q, a, b = _fabricated()
+    a.add_argument("--json-out", dest="json", metavar="OUT", help="JSON report to write")
+    b.add_argument("--seeds", type=int, help="seeds of the runs")
+    assert folder_problems(q, files) == ["vmt a --json-out: writes JSON, and a JSON output is --json"]
+    assert synonym_problems(q) == ["vmt a --json-out: vmt says --json", "vmt b --seeds: vmt says --seed"]
+
+
 @pytest.mark.parametrize("words, old, value, new", RENAMED, ids=[f"{' '.join(r[0][:1])}{r[1]}" for r in RENAMED])
 def test_an_old_option_name_still_works_and_says_its_new_name(words, old, value, new, capsys):
     parser = build_parser()
@@ -856,3 +948,19 @@ def test_the_option_table_in_the_docs_is_the_parsers():
     assert sorted(set(parsed) - set(rows)) == [], "options missing from docs/cli-options.md"
     assert sorted(set(rows) - set(parsed)) == [], "docs/cli-options.md lists options no command has"
     assert {n: c for n, c in rows.items() if c != parsed[n]} == {}, "commands differ from the parsers'"
+
+
+#: Command modules whose long lines are another helper's to wrap this session (session 38: vcmm38 owns
+#: scenarios/cli/vcmm.py; its line 171, 133 characters, is reported to the lead).
+LONG_LINES_ELSEWHERE = {"vcmm.py"}
+
+
+def test_command_modules_keep_lines_within_120_characters():
+    """The code base's line length (a handful of lines elsewhere pass it); the command modules held to it since
+    session 38, when 24 lines of 121-176 characters were wrapped."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2] / "scenarios" / "cli"
+    long = [f"{p.name}:{i}: {len(line)}" for p in sorted(folder.glob("*.py")) if p.name not in LONG_LINES_ELSEWHERE
+            for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if len(line) > 120]
+    assert len(list(folder.glob("*.py"))) > 15 and not long, long

@@ -15,7 +15,7 @@ import pytest
 
 from core.probelog import read_probe_log, write_probe_log
 from scenarios.cli import main
-from tests.cli_helpers import one_line_error
+from tests.cli_helpers import one_line_error, percent_counts, record_progress
 
 #: identified and U95 of the log route against the in-memory run, um or urad. The log holds every number in
 #: shortest round trip, so the touches, normals, features and gains come back bit for bit (checked below); the
@@ -62,10 +62,17 @@ def test_simulated_log_reads_back_into_the_scenarios_measurements(run3):
     np.testing.assert_allclose(ml.certificate.u_m, r.campaign["u_cal_m"], rtol=0, atol=1e-18)
 
 
-def test_identify_on_the_log_gives_the_scenarios_errors_and_u95(run3, tmp_path, capsys):
+def test_identify_on_the_log_gives_the_scenarios_errors_and_u95(run3, tmp_path, capsys, monkeypatch):
     r, path = run3
     out = tmp_path / "i.json"
+    bars = record_progress(monkeypatch)
     assert main(["identify", str(path), "--json", str(out)]) == 0
+    # the progress line counts the reading's 17 noise gains (session 38: it sat at 0/4 for them, 40 % of the run)
+    from scenarios.cli.identify import MFB_IDENTIFY_SHARES
+
+    done = percent_counts(bars[0].calls)
+    fitted, read = MFB_IDENTIFY_SHARES
+    assert len({d for d in done if fitted <= d <= read}) >= 15 and done[-1] == 100, done
     said = capsys.readouterr().out
     assert "multi-feature bar, 14 set-ups, 17 measurements, 3888 touches" in said and "selfcal" not in said
     doc = json.loads(out.read_text())
@@ -138,10 +145,18 @@ def test_derived_nodes_of_the_3axis_plan(run3):
         np.testing.assert_allclose(ml.nodes[a], r.plan.nodes[a], rtol=0, atol=1e-12)
 
 
-def test_discover_reads_none_on_an_effect_free_campaign(run3, tmp_path, capsys):
+def test_discover_reads_none_on_an_effect_free_campaign(run3, tmp_path, capsys, monkeypatch):
     _, path = run3
     out = tmp_path / "d.json"
+    bars = record_progress(monkeypatch)
     assert main(["discover", str(path), "--json", str(out)]) == 0
+    # the progress line counts the reading's noise gains, the baseline and the search (session 38: no count at all)
+    from scenarios.discover_run import MFB_DISCOVER_SHARES
+
+    done = percent_counts(bars[0].calls)
+    fitted, read, built = MFB_DISCOVER_SHARES
+    assert done[0] == fitted and len({d for d in done if fitted <= d <= read}) >= 15 and done[-1] == 100, done
+    assert built in done and any(built < d < 100 for d in done), done
     said = capsys.readouterr().out
     rep = json.loads(out.read_text())
     assert rep["cause"] == "none" and not rep["findings"], rep["cause"]

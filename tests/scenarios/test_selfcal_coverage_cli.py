@@ -16,7 +16,7 @@ def test_one_seed_through_the_runner_is_the_studys_campaign(tmp_path, capsys):
     the residuals alone miss part of the workpiece there (60 of 92 on this seed, measured; 58 before session 30's
     probing sigma beside the entered tables' fine span, core.uncertainty.SIGMA_BESIDE_TABLES)."""
     out = tmp_path / "c.json"
-    assert sc.main(["--machines", "nmv3000", "--seeds", "20", "21", "--noise-um", "0", "--out", str(out)]) == 0
+    assert sc.main(["--machines", "nmv3000", "--seeds", "20", "21", "--noise-um", "0", "--json", str(out)]) == 0
     doc = json.loads(out.read_text())
     assert doc["format"] == sc.FORMAT and doc["seeds"] == [20]
     res, cv, mis = sc.identify_and_cover(sc.simulate("nmv3000", 20, 0.0))

@@ -72,3 +72,21 @@ def test_format_duration_and_null_callback():
     assert format_duration(185) == "3 min 05 s"
     assert format_duration(7620) == "2 h 07 min"
     assert no_progress(1, 2) is None
+
+
+def test_a_run_counted_in_the_last_runs_seconds_says_its_time_left_from_the_start():
+    """vmt bench counts its benchmarks in the seconds they took last time: before the first one ends the time
+    left is the last run's less the time spent (a single benchmark, --only X, said nothing until it ended);
+    once one ends, the rate of this run (here twice as slow as the last)."""
+    s, clock = FakeTTY(), Clock()
+    p = TerminalProgress("bench", stream=s, clock=clock, min_interval_s=0.0, counts_seconds=True)
+    p(0, 600)
+    assert s.getvalue().endswith("0/600 (  0 %)  ~10 min 00 s left as the last run")
+    clock.t = 30.0
+    p(0, 600)
+    assert s.getvalue().rstrip().endswith("~9 min 30 s left as the last run")    # (padded over the longer one)
+    clock.t = 200.0
+    p(100, 600)                         # 100 s of the last run's took 200 s: 500 more take 1000 s
+    assert s.getvalue().rstrip().endswith("100/600 ( 17 %)  ~16 min 40 s left")
+    q = TerminalProgress("campaign", stream=FakeTTY(), clock=Clock(), min_interval_s=0.0)
+    assert q.line(0, 600).endswith("0/600 (  0 %)")           # a count of items: no estimate before one is done
