@@ -143,10 +143,13 @@ def run(args) -> int:
                 print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
-    if state is not None:   # a state that cannot carry the scale (session 37): refused when it moves a measurand
-        from scenarios.vcmm import state_scale_check
+    if state is not None:   # what the state cannot carry, its scale (session 37) and its gauge (session 38):
+        import json   # (the lobing its identification found: beside the estimate in the same file)
+        from pathlib import Path
 
-        why, notice = state_scale_check(st)
+        from scenarios.vcmm import identification_lobing, state_carry_check   # refused when it moves a measurand
+
+        why, notice = state_carry_check(st, identification_lobing(json.loads(Path(args.machine_state).read_text())))
         if why:
             raise ConfigError(why)
         if notice:
