@@ -458,29 +458,6 @@ def state_gauge_check(st: Setting) -> str | None:
             "nothing run")
 
 
-def state_carry_check(st: Setting, lobing: dict | None = None) -> tuple[str | None, str | None]:
-    """``(refusal, notice)``, each one line or None: the state's scale (:func:`state_scale_check`), gauge
-    (:func:`state_gauge_check`) and, with ``lobing`` (:func:`identification_lobing` of its file), the probe
-    lobing its identification found (:func:`state_lobing_check`), together: a task refused for more than one
-    reason is refused once, naming each."""
-    why_s, notice = state_scale_check(st)
-    whys = [w for w in (why_s, state_gauge_check(st), state_lobing_check(st, lobing)) if w]
-    if not whys:
-        return None, notice
-    src = f"{st.state.source}: "
-    parts = [w.removeprefix(src).removesuffix("; nothing run") for w in whys]
-    return src + "; and ".join(parts) + "; nothing run", None
-
-
-def cannot_carry(st: Setting) -> list | None:
-    """``machine_state.cannot_carry`` of the report: what the state cannot carry, the scale's entry
-    (:func:`state_scale`, when the state's scale is unknown) and the gauge's (:func:`state_gauge`); None
-    without a state."""
-    if st.state is None:
-        return None
-    return [e for e in (state_scale(st), state_gauge(st)) if e is not None]
-
-
 def identification_lobing(doc: dict) -> dict | None:
     """The probe lobing an identification found in its residuals and left out of its covariance: an identify
     JSON's ``not_covered.approach_direction`` (core.selfcal: residuals that follow the approach azimuth, a
@@ -505,42 +482,108 @@ def state_moved(st: Setting) -> list:
     return [m.name for m in st.task.measurands if m.name in moved]
 
 
-def state_lobing_check(st: Setting, lobing: dict | None) -> str | None:
-    """The refusal (one line) of a task the state moves when its identification found a probe lobing
-    (:func:`identification_lobing`), or None.
+#: A probe lobing its identification found (:func:`identification_lobing`) is refused when it shifts one of the
+#: state's tables by at least this share of that value's U95 at its worst phase (``not_covered.approach_direction
+#: .shift[block].worst_phase_ratio_to_u95``, the part the design absorbs included; the visible part's
+#: ``ratio_to_u95`` where the file has no worst phase); below it the task runs with a notice. 1: the state's
+#: own values then leave their U95, so it is no longer the calibrated state its covariance says. Session 38's
+#: coverage (nmv3000 realistic, an order-2 lobe, the exact simulator, 20 seeds a row; README "--machine-state"):
+#: a 1.5 um lobe (ratios 6.7-8.3) covered 13/30 had it run, 0.6 um (2.6-3.5) 49/60, 0.3 um 56/60 (as the
+#: lobing-free 53/60: refused at this ratio all the same, the cost of a rule read from the tables, not from the
+#: task's measurands), 0.1 um (mostly not found) as lobing-free.
+LOBING_REFUSE_RATIO = 1.0
+
+
+def _lobing_ratios(st: Setting, lobing: dict) -> list:
+    """``[(block, worst-phase ratio to U95, largest shift, unit)]`` of the state's tables, largest ratio first."""
+    out = []
+    for b, v in (lobing.get("shift") or {}).items():
+        if b not in st.state.symbols or not isinstance(v, dict):
+            continue
+        r = v.get("worst_phase_ratio_to_u95", v.get("ratio_to_u95"))
+        if isinstance(r, (int, float)) and math.isfinite(r):
+            shift = v.get("worst_phase", v.get("largest"))
+            out.append((b, float(r), abs(float(shift)) if isinstance(shift, (int, float)) else float("nan"),
+                        str(v.get("unit", ""))))
+    return sorted(out, key=lambda t: -t[1])
+
+
+def state_lobing_check(st: Setting, lobing: dict | None) -> tuple[str | None, str | None]:
+    """``(refusal, notice)`` of the probe lobing the state's identification found (:func:`identification_lobing`),
+    each one line or None.
 
     A self-calibration models the probe as lobing-free (Ibaraki et al. assume the pre-travel compensated):
     a lobing probe's pre-travel, which follows the approach azimuth in the machine frame while the part turns
     on C, is taken partly into the tables. core.selfcal tests the residuals for it and, when found, says so
-    in ``not_covered.approach_direction``: its visible part shifts the tables by up to about twice their U95
-    (the demo's probe, order 2, 1.5 um: EXX 3.9 um, 2.1 x), the part the design absorbs is not seen, and
-    none of it is in the covariance. vcmm's runs draw the state from that covariance, so the bias passes to
-    the measurands uncarried: on the demo's machine with the length known exactly, a 120 mm face distance
-    5.1 um and a 128 mm bore-bore distance 5.2 um off the lobing-free probe's state (session 38, against the
-    exact simulator), U95 about 3 um. The file holds the bias per block only as its largest value, not its
-    shape along the tables, so it cannot be propagated to a measurand; no interval is given: a measurand the
-    state moves is refused, with the way out (compensate the probe's pre-travel, identify again)."""
+    in ``not_covered.approach_direction``: each table's shift and its ratio to the value's U95 (the visible
+    part, and at the lobe's worst phase with the part the design absorbs), none of it in the covariance.
+    vcmm's runs draw the state from that covariance, so the bias passes to the measurands uncarried: on the
+    demo's machine with the length known exactly, the demo's probe (order 2, 1.5 um) puts a 120 mm face
+    distance 4.1 um and a 128 mm bore-bore distance 4.9 um off the truth, the lobing-free probe's state 1.0
+    and 0.3 um, U95 about 3 um (session 38, the exact simulator). The file holds each block's shift only as
+    its largest value, not its shape along the table, so it cannot be propagated to a measurand: when a
+    table of the state is shifted by at least :data:`LOBING_REFUSE_RATIO` of its U95, a measurand the state
+    moves is refused (the way out: compensate the probe's pre-travel, identify again); below it the task runs
+    with a notice saying what is left out."""
     if lobing is None or st.state is None:
-        return None
+        return None, None
     moved = state_moved(st)
     if not moved:
-        return None
+        return None, None
     names = ", ".join(repr(k) for k in moved)
-    amp = lobing.get("amplitude_um")
-    k = lobing.get("lobe_order")
-    shifts = lobing.get("shift") or {}
-    big = sorted(((b, v) for b, v in shifts.items() if b in st.state.symbols and isinstance(v, dict)
-                  and isinstance(v.get("ratio_to_u95"), (int, float))), key=lambda kv: -kv[1]["ratio_to_u95"])
-    said = (", its tables shifted by it beyond their U95 (" + ", ".join(
-        f"{b} {abs(v['largest']):.2f} {v['unit']}, {v['ratio_to_u95']:.1f} x" for b, v in big[:3]) + ")"
-            if big and big[0][1]["ratio_to_u95"] >= 1 else "")
+    amp, k = lobing.get("amplitude_um"), lobing.get("lobe_order")
     what = (f"a probe pre-travel lobing of order {k}, ~{amp:.2f} um" if isinstance(amp, (int, float))
             and isinstance(k, int) else "a probe pre-travel lobing")
-    verb = "moves" if len(moved) == 1 else "move"
-    return (f"{st.state.source}: its identification found {what} in its residuals and left it out of its "
-            f"covariance (not_covered.approach_direction){said}; {names} {verb} with the state: no interval can "
-            "hold a bias nothing in the state carries; compensate the probe's pre-travel (calibrate its lobing) "
-            "and identify again; nothing run")
+    ratios = _lobing_ratios(st, lobing)
+    said = ", ".join(f"{b} {sh:.2f} {u}, {r:.1f} x" for b, r, sh, u in ratios[:3])
+    worst = ratios[0][1] if ratios else float("inf")   # a record without ratios: its size unknown, refused
+    src = st.state.source
+    if worst >= LOBING_REFUSE_RATIO:
+        verb = "moves" if len(moved) == 1 else "move"
+        return (f"{src}: its identification found {what} in its residuals and left it out of its covariance "
+                f"(not_covered.approach_direction), its tables shifted by it up to "
+                + (f"{said} their U95 (worst phase)" if ratios else "an amount the file does not state")
+                + f"; {names} {verb} with the state: no interval can hold a bias nothing in the state carries; "
+                "compensate the probe's pre-travel (calibrate its lobing) and identify again; nothing run"), None
+    return None, (f"{src}: its identification found {what} in its residuals, left out of its covariance and of "
+                  f"these intervals: it shifts the state's tables by at most {worst:.2f} x their U95 (worst phase; "
+                  f"refused from {LOBING_REFUSE_RATIO:g} x)")
+
+
+def lobing_entry(st: Setting, lobing: dict | None) -> dict | None:
+    """``machine_state.cannot_carry``'s entry for a probe lobing the identification found and vcmm ran with (below
+    :data:`LOBING_REFUSE_RATIO`): ``{"what": "lobing", "lobe_order", "amplitude_um", "worst_ratio_to_u95",
+    "measurands": [names the state moves]}``; None without one."""
+    if lobing is None or st.state is None:
+        return None
+    ratios = _lobing_ratios(st, lobing)
+    return {"what": "lobing", "lobe_order": lobing.get("lobe_order"), "amplitude_um": lobing.get("amplitude_um"),
+            "worst_ratio_to_u95": ratios[0][1] if ratios else None, "measurands": state_moved(st)}
+
+
+def state_carry_check(st: Setting, lobing: dict | None = None) -> tuple[str | None, str | None]:
+    """``(refusal, notice)``, each one line or None: the state's scale (:func:`state_scale_check`), gauge
+    (:func:`state_gauge_check`) and, with ``lobing`` (:func:`identification_lobing` of its file), the probe
+    lobing its identification found (:func:`state_lobing_check`), together: a task refused for more than one
+    reason is refused once, naming each."""
+    why_s, notice = state_scale_check(st)
+    why_l, notice_l = state_lobing_check(st, lobing)
+    whys = [w for w in (why_s, state_gauge_check(st), why_l) if w]
+    if not whys:
+        notices = [n for n in (notice, notice_l) if n]
+        return None, ("\n".join(notices) if notices else None)
+    src = f"{st.state.source}: "
+    parts = [w.removeprefix(src).removesuffix("; nothing run") for w in whys]
+    return src + "; and ".join(parts) + "; nothing run", None
+
+
+def cannot_carry(st: Setting) -> list | None:
+    """``machine_state.cannot_carry`` of the report: what the state cannot carry, the scale's entry
+    (:func:`state_scale`, when the state's scale is unknown) and the gauge's (:func:`state_gauge`); None
+    without a state."""
+    if st.state is None:
+        return None
+    return [e for e in (state_scale(st), state_gauge(st)) if e is not None]
 
 
 def declared_bounded(task: V.Task, strokes: dict) -> None:

@@ -114,7 +114,7 @@ def run(args) -> int:
     spec = truth_machine(args.machine, args.errors, "none")
     plan = read_probe(args.plan, "vcmm")
     J_said = _tool_offset(plan, spec, args.plan)   # a log of another tool refused before any run
-    state = None
+    state = lobing = None
     if args.machine_state is not None:
         from core.state import read_estimate
 
@@ -149,7 +149,8 @@ def run(args) -> int:
 
         from scenarios.vcmm import identification_lobing, state_carry_check   # refused when it moves a measurand
 
-        why, notice = state_carry_check(st, identification_lobing(json.loads(Path(args.machine_state).read_text())))
+        lobing = identification_lobing(json.loads(Path(args.machine_state).read_text()))
+        why, notice = state_carry_check(st, lobing)
         if why:
             raise ConfigError(why)
         if notice:
@@ -160,6 +161,10 @@ def run(args) -> int:
                     sobol_runs=args.sobol_runs)
         bar.clear()
     rep.pop("values_si")
+    if state is not None and lobing is not None:   # run below the refusal's ratio: the JSON says it is left out
+        from scenarios.vcmm import lobing_entry
+
+        rep["machine_state"]["cannot_carry"].append(lobing_entry(st, lobing))
     rep["plan"] = str(args.plan)
     rep["input_warnings"] = list(plan.warnings)
     rep["tool_offset"] = J_said

@@ -230,7 +230,7 @@ def test_a_lobing_state_is_biased_beyond_its_interval_and_refused(lobing_state, 
     over its U95), and vcmm refuses the measurands the state moves, one line, nothing written."""
     from core import vcmm as V
     from scenarios import vcmm_state as VS
-    from scenarios.vcmm import prepare, simulate_run
+    from scenarios.vcmm import LOBING_REFUSE_RATIO, prepare, simulate_run
     from core.probelog import write_probe_log
     from core.state import read_estimate
     from sim.machinefile import truth_machine
@@ -259,7 +259,28 @@ def test_a_lobing_state_is_biased_beyond_its_interval_and_refused(lobing_state, 
     err = one_error_line(capsys)
     assert "its identification found a probe pre-travel lobing of order 2" in err
     assert "'face distance X', 'bore-bore distance', 'bore diameter' move with the state" in err
+    assert "their U95 (worst phase)" in err
     assert "compensate the probe's pre-travel" in err and not out.exists()
-    # the lobing-free campaign's state runs
+    # the lobing-free campaign's state runs, with no lobing entry
     assert main(["vcmm", "--plan", str(plan), "--task", str(tfile), "--no-budget", "--machine", "nmv3000",
                  "--json", str(out), "--machine-state", str(ids["free"][0])]) == 0
+    assert [c["what"] for c in json.loads(out.read_text())["machine_state"]["cannot_carry"]] == ["gauge"]
+    # the same record with every ratio at a hundredth (a lobe that shifts the tables by 1 % of their U95): it runs,
+    # with a notice, and the JSON says the lobing is left out of its intervals
+    doc = json.loads(ids["lobing"][0].read_text())
+    for v in doc["not_covered"]["approach_direction"]["shift"].values():
+        for key in ("ratio_to_u95", "worst_phase_ratio_to_u95"):
+            if v.get(key) is not None:
+                v[key] *= 0.01
+    small = tmp_path / "small.json"
+    small.write_text(json.dumps(doc))
+    out.unlink()
+    capsys.readouterr()
+    assert main(["vcmm", "--plan", str(plan), "--task", str(tfile), "--no-budget", "--machine", "nmv3000",
+                 "--json", str(out), "--machine-state", str(small)]) == 0
+    said = capsys.readouterr().out
+    assert f"{small}: its identification found a probe pre-travel lobing of order 2" in said
+    assert "left out of its covariance and of these intervals" in said
+    carry = json.loads(out.read_text())["machine_state"]["cannot_carry"]
+    assert [c["what"] for c in carry] == ["gauge", "lobing"] and carry[1]["worst_ratio_to_u95"] < LOBING_REFUSE_RATIO
+    assert carry[1]["measurands"] == ["face distance X", "bore-bore distance", "bore diameter"]
