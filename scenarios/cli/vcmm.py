@@ -143,8 +143,8 @@ def run(args) -> int:
                 print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
-    if state is not None:   # what the state cannot carry, its scale (session 37) and its gauge (session 38):
-        import json   # (the lobing its identification found: beside the estimate in the same file)
+    if state is not None:   # what the state cannot carry: its scale (session 37), its gauge and a probe lobing
+        import json   # its identification found (session 38; the lobing's record is beside the estimate)
         from pathlib import Path
 
         from scenarios.vcmm import identification_lobing, state_carry_check   # refused when it moves a measurand
