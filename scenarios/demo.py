@@ -648,7 +648,7 @@ def _vcmm(mfb_json: Path, truth_machine, seed: int, outp: Path, say) -> dict:
     from core.exceptions import ConfigError
     from core.state import identified_on_mismatch, probe_offsets_check, read_estimate
     from scenarios.cli.reading import read_probe
-    from scenarios.vcmm import prepare, simulate_run, study
+    from scenarios.vcmm import prepare, simulate_run, state_carry_check, study
     from sim.machinefile import truth_machine as machine_file
 
     task_path = write_text_atomic(outp / "vcmm-task.toml", VCMM_TASK)
@@ -661,6 +661,9 @@ def _vcmm(mfb_json: Path, truth_machine, seed: int, outp: Path, say) -> dict:
         raise ConfigError(f"{mfb_json}: {why}")
     st = prepare(read_probe(plan_path, "demo"), V.load_task(task_path), spec,
                  state=state.at_axis_positions(cfg.J_m))
+    why, _ = state_carry_check(st)   # the command's check: the task measures only what the state carries
+    if why:     # pragma: no cover - VCMM_TASK has no position, the MFB state knows its scale
+        raise ConfigError(why)
     rep = study(st, seed, budget=False, progress=say.within)
     rep.pop("values_si")
     p = simulate_run(st, {}, np.random.default_rng([seed, 23]), machine=truth_machine)

@@ -114,7 +114,7 @@ def run(args) -> int:
     spec = truth_machine(args.machine, args.errors, "none")
     plan = read_probe(args.plan, "vcmm")
     J_said = _tool_offset(plan, spec, args.plan)   # a log of another tool refused before any run
-    state = None
+    state = lobing = None
     if args.machine_state is not None:
         from core.state import read_estimate
 
@@ -143,10 +143,14 @@ def run(args) -> int:
                 print(line)
         state = state.at_axis_positions(cfg.J_m)   # a state at the readings (J unknown): at reading + this J
     st = prepare(plan, task, spec, noise_um=args.noise_um, state=state)
-    if state is not None:   # a state that cannot carry the scale (session 37): refused when it moves a measurand
-        from scenarios.vcmm import state_scale_check
+    if state is not None:   # what the state cannot carry: its scale (session 37), its gauge and a probe lobing
+        import json   # its identification found (session 38; the lobing's record is beside the estimate)
+        from pathlib import Path
 
-        why, notice = state_scale_check(st)
+        from scenarios.vcmm import identification_lobing, state_carry_check   # refused when it moves a measurand
+
+        lobing = identification_lobing(json.loads(Path(args.machine_state).read_text()))
+        why, notice = state_carry_check(st, lobing)
         if why:
             raise ConfigError(why)
         if notice:
@@ -157,6 +161,10 @@ def run(args) -> int:
                     sobol_runs=args.sobol_runs)
         bar.clear()
     rep.pop("values_si")
+    if state is not None and lobing is not None:   # run below the refusal's ratio: the JSON says it is left out
+        from scenarios.vcmm import lobing_entry
+
+        rep["machine_state"]["cannot_carry"].append(lobing_entry(st, lobing))
     rep["plan"] = str(args.plan)
     rep["input_warnings"] = list(plan.warnings)
     rep["tool_offset"] = J_said

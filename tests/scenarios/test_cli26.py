@@ -203,6 +203,19 @@ VCMM = ["vcmm", "--plan", "scenarios/data/vcmm-block-plan.csv", "--task", "scena
         "--no-budget"]
 
 
+def vcmm_state_task(tmp_path) -> list:
+    """VCMM with the shipped block task less its "bore x": a position in the machine frame, which a state's
+    gauge moves and vcmm refuses with --machine-state (session 38); the tests with a state are about its record."""
+    from pathlib import Path
+
+    text = Path(VCMM[4]).read_text()
+    bore_x = '[[measurands]]\nname = "bore x"\nquantity = "position"\nof = "bore"\naxis = "x"\n\n'
+    assert bore_x in text
+    task = tmp_path / "task-no-position.toml"
+    task.write_text(text.replace(bore_x, ""))
+    return VCMM[:4] + [str(task)] + VCMM[5:]
+
+
 def test_identify_records_the_machine_chain_and_height(identified):
     from core.probelog import read_probe_log
     from core.state import read_estimate
@@ -251,8 +264,8 @@ def test_a_state_without_the_record_reads_with_a_notice(identified, tmp_path, ca
     old = tmp_path / "old.json"
     old.write_text(json.dumps(doc))
     capsys.readouterr()
-    assert main(VCMM + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"), "--machine-state", str(old),
-                        "--tol-um", "1"]) == 0
+    assert main(vcmm_state_task(tmp_path) + ["--machine", "vmc-3axis", "--json", str(tmp_path / "v.json"),
+                                             "--machine-state", str(old), "--tol-um", "1"]) == 0
     out = capsys.readouterr().out
     assert out.startswith(f"{old}: no record of the machine it was identified on (a file written before session "
                           "26): applied to vmc-3axis unchecked\n"), out
@@ -288,7 +301,8 @@ def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified
     assert json.loads(out.read_text())["estimate"]["identified_on"]["probe_offsets_J_mm"] == [[0.0, 0.0, 150.0]]
     capsys.readouterr()
     v = tmp_path / "v.json"
-    assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(out), "--tol-um", "1"]) == 0
+    assert main(vcmm_state_task(tmp_path) + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(out),
+                                             "--tol-um", "1"]) == 0
     said = capsys.readouterr().out                                           # nmv3000's tool: [0, 0, 150] mm
     # no notice of the state's check: the one line naming probe offsets is the J the runs used (session 37)
     assert [ln for ln in said.splitlines() if "probe offsets" in ln] == [
@@ -302,7 +316,8 @@ def test_identify_records_the_tool_offsets_given_and_vcmm_checks_them(identified
                                  "(0, 0, 100) mm, not with this machine's tool offsets (0, 0, 150) mm")
     assert "identify with this probe" in err and not v.exists()
     # without the option (the fixture's state): null, applied with a notice naming what is unchecked
-    assert main(VCMM + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(ident), "--tol-um", "1"]) == 0
+    assert main(vcmm_state_task(tmp_path) + ["--machine", "nmv3000", "--json", str(v), "--machine-state", str(ident),
+                                             "--tol-um", "1"]) == 0
     assert (f"{ident}: the probe offsets J it was identified with are not recorded (vmt identify "
             "--tool-offset-mm): its tables, the tool's X/Y deviation with that probe, applied with the tool "
             "offsets (0, 0, 150) mm unchecked (its nodes, at the readings, placed at reading + these offsets)\n"

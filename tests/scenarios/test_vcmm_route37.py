@@ -82,8 +82,9 @@ def test_the_route_runs_vcmm_on_its_machine_and_refuses_another(route, tmp_path,
                  "nmv3000", "--json", str(out), "--machine-state", str(ident)]) == 0
     said = capsys.readouterr().out
     assert f"{ident}: its scale is unknown (identified without --delta-l-um); no measurand of the task moves" in said
-    carry = json.loads(out.read_text())["machine_state"]["cannot_carry"]
-    assert carry["what"] == "scale" and "scale unknown" in carry["why"] and carry["measurands"] == {}
+    carry = json.loads(out.read_text())["machine_state"]["cannot_carry"]   # a list since session 38 (the gauge)
+    assert [c["what"] for c in carry] == ["scale", "gauge"]
+    assert "scale unknown" in carry[0]["why"] and carry[0]["measurands"] == {} and carry[1]["measurands"] == {}
 
     refused = tmp_path / "refused.json"
     assert main(["vcmm", "--plan", BLOCK_PLAN, "--task", BLOCK_TASK, "--no-budget", "--machine", "nmv3000",
