@@ -176,7 +176,8 @@ def run(args) -> int:
         d = _u_decimals(m.get("tolerance"))
         print(f"  {m['name']}: nominal {_fmt(m['nominal'], m['unit'])}, bias {m['bias']:+.4f} {m['u_unit']}, "
               f"u {m['u']:.{d}f} {m['u_unit']}, U{100 * m['coverage']:g} {m['U']:.{d}f} {m['u_unit']}, "
-              f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, {_fmt(m['interval'][1], m['unit'])}]{tail}")
+              f"{100 * m['coverage']:g} % interval [{_fmt(m['interval'][0], m['unit'])}, "
+              f"{_fmt(m['interval'][1], m['unit'])}]{tail}")
         lo, hi = m["error_interval"]   # the true value is measured - error (review33a F6)
         minus = lambda e: f"measured {'-' if e >= 0 else '+'} {abs(e):.{d}f}"   # noqa: E731
         print(f"      the true value ({100 * m['coverage']:g} %): in [{minus(hi)}, {minus(lo)}] {m['u_unit']}, "

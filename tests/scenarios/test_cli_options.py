@@ -950,17 +950,12 @@ def test_the_option_table_in_the_docs_is_the_parsers():
     assert {n: c for n, c in rows.items() if c != parsed[n]} == {}, "commands differ from the parsers'"
 
 
-#: Command modules whose long lines are another helper's to wrap this session (session 38: vcmm38 owns
-#: scenarios/cli/vcmm.py; its line 171, 133 characters, is reported to the lead).
-LONG_LINES_ELSEWHERE = {"vcmm.py"}
-
-
 def test_command_modules_keep_lines_within_120_characters():
     """The code base's line length (a handful of lines elsewhere pass it); the command modules held to it since
     session 38, when 24 lines of 121-176 characters were wrapped."""
     from pathlib import Path
 
     folder = Path(__file__).resolve().parents[2] / "scenarios" / "cli"
-    long = [f"{p.name}:{i}: {len(line)}" for p in sorted(folder.glob("*.py")) if p.name not in LONG_LINES_ELSEWHERE
+    long = [f"{p.name}:{i}: {len(line)}" for p in sorted(folder.glob("*.py"))
             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1) if len(line) > 120]
     assert len(list(folder.glob("*.py"))) > 15 and not long, long
