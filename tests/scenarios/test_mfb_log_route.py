@@ -162,7 +162,9 @@ def test_a_hidden_effect_written_out_and_read_back_reads_as_in_memory(cause, see
     from scenarios.hidden import mfb_baseline, mfb_campaign, mfb_declared_noise
     from scenarios.mfb import campaign_log, default_machine
 
-    res, _, _ = mfb_campaign(cause, seed)
+    # written as mfb_baseline calls it (below): lru_cache keys on the call as written, so ``mfb_campaign(cause,
+    # seed)`` was a second entry and simulated the campaign again (session 38: about 2 s of CPU a case)
+    res, _, _ = mfb_campaign(cause, seed, name="mfb-3axis", bar_cal_error=True)
     path = tmp_path / "h.csv"
     write_probe_log(path, campaign_log(res))
     bl, ml = mfb_log_baseline(read_probe_log(path))
