@@ -24,8 +24,9 @@ import numpy as np
 import pytest
 
 #: The session fixtures of this conftest that several test files use: every file that names one
-#: runs on the same worker. Checked on every worker against the fixtures the tests really use.
-SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
+#: runs on the same worker, and fixtures named together in one file are one unit (:func:`fixture_units`).
+#: Checked on every worker against the fixtures the tests really use.
+SHARED_SESSION_FIXTURES = ("mfb3_noise_free", "mfb_seed1_runs")
 
 #: The longest units, longest first (seconds of their tests, set-up included, summed per unit from --durations=0 of a
 #: full run on two workers, nice 10 at load 14-16, 2026-12-05, 1,797 s of tests in 1,018 s of wall):
@@ -69,15 +70,48 @@ LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/scenarios/test_cli26.py", "te
 _ROOT = Path(__file__).resolve().parents[1]
 
 
+def _named(text: str) -> list:
+    """The shared session fixtures (:data:`SHARED_SESSION_FIXTURES`, in its order) that a test file's source names."""
+    return [n for n in SHARED_SESSION_FIXTURES if n in text]
+
+
+@functools.cache
+def fixture_units() -> dict:
+    """Shared session fixture -> the fixture naming its unit: fixtures named together in one test file are one
+    unit (transitively), named by the first of them in :data:`SHARED_SESSION_FIXTURES`; else each its own. A
+    file naming two fixtures of two units would otherwise leave one of them computed on both workers."""
+    root = {n: n for n in SHARED_SESSION_FIXTURES}
+
+    def find(n):
+        while root[n] != n:
+            n = root[n]
+        return n
+
+    order = {n: i for i, n in enumerate(SHARED_SESSION_FIXTURES)}
+    for fn in sorted((_ROOT / "tests").rglob("*.py")):
+        if fn.name == "conftest.py":
+            continue
+        try:
+            names = _named(fn.read_text(encoding="utf-8"))
+        except OSError:
+            continue
+        for n in names[1:]:
+            a, b = sorted((find(names[0]), find(n)), key=order.get)
+            root[b] = a
+    return {n: find(n) for n in SHARED_SESSION_FIXTURES}
+
+
 @functools.cache
 def unit_of(path: str) -> str:
     """The work unit of a test file (rootdir-relative ``path``): ``fixture:NAME`` for a file whose
-    source names a shared session fixture (the first of :data:`SHARED_SESSION_FIXTURES`), else the file."""
+    source names a shared session fixture (NAME: the fixture naming that fixture's unit, :func:`fixture_units`),
+    else the file."""
     try:
         text = (_ROOT / path).read_text(encoding="utf-8")
     except OSError:
         return path
-    return next((f"fixture:{n}" for n in SHARED_SESSION_FIXTURES if n in text), path)
+    names = _named(text)
+    return f"fixture:{fixture_units()[names[0]]}" if names else path
 
 
 def _unit_rank(path: str) -> int:
@@ -291,4 +325,17 @@ def mfb3_noise_free():
     finally:
         V.identify_volumetric = orig
     return res, cap["m"]
+
+
+@pytest.fixture(scope="session")
+def mfb_seed1_runs():
+    """The seed-1 MFB runs of docs/papers-mfb.md's rows (:func:`scenarios.mfb_paper_rows._runs`, the page's commands
+    with ``--mc 0``), shared by the test files that read one of them (read only): ``"reversal"`` (the reversal on
+    the simulated CMM, seed 1) and ``(name, kind)`` for ``name`` mfb-3axis and mfb-5axis, ``kind`` ``"declared"``
+    (``run(name, seed=1, mc_runs=0)``), ``"reversal"`` (with the reversal's calibration, through its file) and
+    ``"k1"`` (``u_cal_um=(0.4, 0.7, 0.7)``). Seven simulations of about 2 s of CPU each, two of which
+    tests/scenarios/test_mfb_log_route.py and test_mfb_scenario.py ran again (session 38)."""
+    from scenarios import mfb_paper_rows
+
+    return mfb_paper_rows._runs()
 
