@@ -24,60 +24,97 @@ import numpy as np
 import pytest
 
 #: The session fixtures of this conftest that several test files use: every file that names one
-#: runs on the same worker. Checked on every worker against the fixtures the tests really use.
-SHARED_SESSION_FIXTURES = ("mfb3_noise_free",)
+#: runs on the same worker, and fixtures named together in one file are one unit (:func:`fixture_units`).
+#: Checked on every worker against the fixtures the tests really use.
+SHARED_SESSION_FIXTURES = ("mfb3_noise_free", "mfb_seed1_runs")
 
-#: The longest units, longest first (seconds of their tests, set-up included, summed per unit from --durations=0 of a
-#: full run on two workers, nice 10 at load 14-16, 2026-12-05, 1,797 s of tests in 1,018 s of wall):
-#: tests/scenarios/test_cli26.py 159, test_discover_misses 141, test_discover_hidden 132, the mfb3_noise_free unit
-#: 131, test_discover_nonrigid_u95 104, then 64, 55, 50, 47, 38, 38, 35, 35, 34, 25, 24, 24, 22, 22, 22, 20, 20, 19,
-#: 18, 17, 17, 17, 16, 16, 16, 15, 15, 14, 14, 13, 13, 13, 13, 13, 11, 11, 11, 11, 11, 10 s; every unit of 10 s or
-#: more (45 of 149 units, 87 % of the seconds), the others follow in collection order and fill the end. Handed out
-#: first, so that no long file starts last and leaves one worker running alone: the list of session 19-27 missed
-#: test_cli26 (159 s), test_discover_norm_u95 (64 s), test_straddled_fastpath (50 s) and test_comp_closed_loop (38 s),
-#: which ran where collection put them. xdist's loadscope queue replayed on these durations (a unit at a time to a
-#: worker with 2 tests or fewer pending): the two workers' sums 890 and 907 s with the old list, 898 and 899 with this
-#: one; with each unit's time scaled by a random factor (lognormal, 30 %) the gap between the workers' ends averages
-#: 32 s (90th percentile 87 s) with the old list and 1.7 s (3.6 s) with this one. The full run with this list (same
-#: load, 2,477 passed): the workers' tests took 876 and 875 s. A file missing here only loses its place.
-#: Merged after this list was measured: test_mfb_scenario's coverage over 30 seeds (session 28, ecy28: 99 s at load
-#: ~14), in the mfb3_noise_free unit, which then takes about 230 s and goes first. Session 36 (tcut36): the test cuts
-#: moved test_comp_closed_loop (38 s, 21 % less CPU since) and test_straddled_fastpath (50 s, 57 % less) to where
-#: their new times put them (about 30 and 21 s).
-LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/scenarios/test_cli26.py", "tests/core/test_discover_misses.py",
-                 "tests/scenarios/test_discover_hidden.py", "tests/core/test_discover_nonrigid_u95.py",
-                 "tests/core/test_discover_norm_u95.py", "tests/core/test_discover_engine.py",
-                 "tests/core/test_discover_gain_interval.py", "tests/core/test_discover_cv.py",
-                 "tests/core/test_discover_generalisation.py", "tests/sim/test_clearance.py",
-                 "tests/core/test_discover_defect.py", "tests/scenarios/test_comp_closed_loop.py",
-                 "tests/core/test_discover_u95_smooth.py", "tests/sim/test_mfb_scene.py", "tests/test_fuzz_cli.py",
-                 "tests/scenarios/test_demo.py", "tests/hardware/test_campaign.py",
-                 "tests/core/test_discover_warmup_tau.py", "tests/core/test_straddled_fastpath.py",
-                 "tests/scenarios/test_selfcal_coverage.py", "tests/scenarios/test_paper_scenarios.py",
-                 "tests/scenarios/test_regress.py", "tests/core/test_long_basis.py",
-                 "tests/core/test_discover_turned_lead.py", "tests/viz/test_figures.py",
-                 "tests/scenarios/test_parallel.py", "tests/core/test_path_count_deferred.py", "tests/core/test_fit.py",
-                 "tests/scenarios/test_machine_file_cli.py", "tests/core/test_forms_gram.py",
-                 "tests/test_architecture.py", "tests/core/test_discover_kernels.py",
-                 "tests/core/test_discover_named_beside_turn.py", "tests/scenarios/test_cli_options.py",
-                 "tests/core/test_discover_identity.py", "tests/core/test_part_change_curve.py",
-                 "tests/scenarios/test_guard.py", "tests/scenarios/test_vcmm_study.py",
-                 "tests/core/test_discover_grid_after_outliers.py", "tests/hardware/test_emulator_sim.py",
-                 "tests/scenarios/test_blind_gen_a.py", "tests/core/test_discover_workpiece_named.py",
-                 "tests/core/test_discover_lobes.py", "tests/viz/test_mfb_figures.py")
+#: The longest units, longest first: every unit of 5 s or more (62 of 251 units), by its seconds (tests, set-ups
+#: included, summed per unit) in session 38's make test on an idle fresh clone (the lead's junit of it: 1,267 s of
+#: tests on two workers, 645 s of wall), the files sharing a session fixture as one unit (the mfb3_noise_free unit,
+#: with mfb_seed1_runs's files: 229 s); the others follow in collection order and fill the end. Handed out first, so
+#: that no long file starts last and leaves one worker running alone. The list of sessions 27-37 had gone stale: it
+#: missed test_discover_volumetric (49 s), test_mfb_discovered (27 s), test_discover_form_shift (12 s),
+#: test_mfb_study (11 s) and others, which ran where collection put them, and kept test_cli26 second (159 s in
+#: session 27, 19 s now).
+#: xdist's queue replayed on these durations (a unit at a time to the first free worker), each unit's time scaled by a
+#: random factor (lognormal, 30 %, 2,000 draws): the gap between the workers' ends averages 1.7 s (90th percentile
+#: 4.8 s) with the old list and 0.4 s (0.8 s) with this one. A file missing here only loses its place.
+LONGEST_FIRST = ("fixture:mfb3_noise_free", "tests/core/test_discover_misses.py",
+                 "tests/scenarios/test_discover_hidden.py", "tests/core/test_discover_volumetric.py",
+                 "tests/scenarios/test_demo.py", "tests/scenarios/test_mfb_discovered.py",
+                 "tests/hardware/test_campaign.py", "tests/core/test_discover_norm_u95.py",
+                 "tests/core/test_discover_cv.py", "tests/core/test_discover_nonrigid_u95.py",
+                 "tests/scenarios/test_cli26.py", "tests/scenarios/test_comp_closed_loop.py",
+                 "tests/core/test_discover_engine.py", "tests/scenarios/test_regress.py",
+                 "tests/core/test_discover_defect.py", "tests/core/test_discover_form_shift.py",
+                 "tests/core/test_discover_gain_interval.py", "tests/scenarios/test_warn31_input_warnings.py",
+                 "tests/scenarios/test_mfb_study.py", "tests/core/test_discover_turned_lead.py",
+                 "tests/core/test_discover_u95_smooth.py", "tests/core/test_discover_generalisation.py",
+                 "tests/core/test_straddled_fastpath.py", "tests/core/test_discover_diag31.py",
+                 "tests/scenarios/test_discover_abbe_baseline.py", "tests/core/test_discover_named_beside_turn.py",
+                 "tests/scenarios/test_vcmm_route37.py", "tests/core/test_uncertainty.py",
+                 "tests/scenarios/test_demo_steps37.py", "tests/core/test_discover_workpiece_named.py",
+                 "tests/core/test_discover_warmup_tau.py", "tests/hardware/test_emulator_sim.py",
+                 "tests/core/test_fit.py", "tests/sim/test_mfb_scene.py", "tests/scenarios/test_paper_scenarios.py",
+                 "tests/scenarios/test_identify_tool_offset.py", "tests/test_architecture.py",
+                 "tests/core/test_discover_pair37.py", "tests/sim/test_clearance.py", "tests/viz/test_figures.py",
+                 "tests/scenarios/test_hidden_mfb.py", "tests/core/test_forms_gram.py",
+                 "tests/core/test_discover_sel36.py", "tests/core/test_selfcal_serial.py",
+                 "tests/core/test_long_basis.py", "tests/core/test_part_change_curve.py",
+                 "tests/scenarios/test_guard.py", "tests/scenarios/test_parallel.py",
+                 "tests/core/test_fit_rounding.py", "tests/scenarios/test_vcmm_true_value.py",
+                 "tests/scenarios/test_comprule_study.py", "tests/core/test_discover_vif33.py",
+                 "tests/scenarios/test_selfcal_coverage.py", "tests/core/test_path_count_deferred.py",
+                 "tests/hardware/test_emulator_robust.py", "tests/hardware/test_grbl_tool_offset.py",
+                 "tests/core/test_discover_vif32.py", "tests/scenarios/test_blind_gen_a.py", "tests/test_fuzz_cli.py",
+                 "tests/scenarios/test_mfb_between_nodes.py", "tests/core/test_discover_fine_shift.py",
+                 "tests/core/test_discover_grid_after_outliers.py")
 
 _ROOT = Path(__file__).resolve().parents[1]
+
+
+def _named(text: str) -> list:
+    """The shared session fixtures (:data:`SHARED_SESSION_FIXTURES`, in its order) that a test file's source names."""
+    return [n for n in SHARED_SESSION_FIXTURES if n in text]
+
+
+@functools.cache
+def fixture_units() -> dict:
+    """Shared session fixture -> the fixture naming its unit: fixtures named together in one test file are one
+    unit (transitively), named by the first of them in :data:`SHARED_SESSION_FIXTURES`; else each its own. A
+    file naming two fixtures of two units would otherwise leave one of them computed on both workers."""
+    root = {n: n for n in SHARED_SESSION_FIXTURES}
+
+    def find(n):
+        while root[n] != n:
+            n = root[n]
+        return n
+
+    order = {n: i for i, n in enumerate(SHARED_SESSION_FIXTURES)}
+    for fn in sorted((_ROOT / "tests").rglob("*.py")):
+        if fn.name == "conftest.py":
+            continue
+        try:
+            names = _named(fn.read_text(encoding="utf-8"))
+        except OSError:
+            continue
+        for n in names[1:]:
+            a, b = sorted((find(names[0]), find(n)), key=order.get)
+            root[b] = a
+    return {n: find(n) for n in SHARED_SESSION_FIXTURES}
 
 
 @functools.cache
 def unit_of(path: str) -> str:
     """The work unit of a test file (rootdir-relative ``path``): ``fixture:NAME`` for a file whose
-    source names a shared session fixture (the first of :data:`SHARED_SESSION_FIXTURES`), else the file."""
+    source names a shared session fixture (NAME: the fixture naming that fixture's unit, :func:`fixture_units`),
+    else the file."""
     try:
         text = (_ROOT / path).read_text(encoding="utf-8")
     except OSError:
         return path
-    return next((f"fixture:{n}" for n in SHARED_SESSION_FIXTURES if n in text), path)
+    names = _named(text)
+    return f"fixture:{fixture_units()[names[0]]}" if names else path
 
 
 def _unit_rank(path: str) -> int:
@@ -291,4 +328,17 @@ def mfb3_noise_free():
     finally:
         V.identify_volumetric = orig
     return res, cap["m"]
+
+
+@pytest.fixture(scope="session")
+def mfb_seed1_runs():
+    """The seed-1 MFB runs of docs/papers-mfb.md's rows (:func:`scenarios.mfb_paper_rows._runs`, the page's commands
+    with ``--mc 0``), shared by the test files that read one of them (read only): ``"reversal"`` (the reversal on
+    the simulated CMM, seed 1) and ``(name, kind)`` for ``name`` mfb-3axis and mfb-5axis, ``kind`` ``"declared"``
+    (``run(name, seed=1, mc_runs=0)``), ``"reversal"`` (with the reversal's calibration, through its file) and
+    ``"k1"`` (``u_cal_um=(0.4, 0.7, 0.7)``). Seven simulations of about 2 s of CPU each, two of which
+    tests/scenarios/test_mfb_log_route.py and test_mfb_scenario.py ran again (session 38)."""
+    from scenarios import mfb_paper_rows
+
+    return mfb_paper_rows._runs()
 

@@ -26,14 +26,13 @@ TOL_UM = 1e-6
 
 
 @pytest.fixture(scope="module")
-def run3(tmp_path_factory):
-    """The 3-axis scenario's run (seed 1, linear U95) and its campaign written by `vmt simulate mfb-3axis`."""
-    from scenarios.mfb import run
-
+def run3(tmp_path_factory, mfb_seed1_runs):
+    """The 3-axis scenario's run (seed 1, linear U95: ``run("mfb-3axis", seed=1, mc_runs=0)``, the session's, read
+    only: tests/conftest.py mfb_seed1_runs) and its campaign written by `vmt simulate mfb-3axis`."""
     d = tmp_path_factory.mktemp("mfb3")
     path = d / "m3.csv"
     assert main(["simulate", "mfb-3axis", "--seed", "1", "--out", str(path)]) == 0
-    return run("mfb-3axis", seed=1, mc_runs=0), path
+    return mfb_seed1_runs["mfb-3axis", "declared"], path
 
 
 def _same_measurements(a_list, b_list):
@@ -108,13 +107,14 @@ def test_identify_with_a_declared_ripple_gives_the_scenarios_u95(run3, tmp_path)
     assert max(rr.doc["errors"]["EXX"]["u95"]) > max(r.doc["errors"]["EXX"]["u95"]) + 0.1   # the term is there
 
 
-def test_the_5axis_plan_round_trip(tmp_path):
+def test_the_5axis_plan_round_trip(tmp_path, mfb_seed1_runs):
     """mfb-5axis: rotary set-ups (A, C), the rotary axes' points on their line; the nodes derived from the bars
-    when the log has no nodes line are the plan's."""
+    when the log has no nodes line are the plan's. (The run is ``run("mfb-5axis", seed=1, mc_runs=0)``, the
+    session's: tests/conftest.py mfb_seed1_runs, read only.)"""
     from core.mfblog import NODES_KEY, read_mfb_log
-    from scenarios.mfb import campaign_log, identify_log, run
+    from scenarios.mfb import campaign_log, identify_log
 
-    r = run("mfb-5axis", seed=1, mc_runs=0)
+    r = mfb_seed1_runs["mfb-5axis", "declared"]
     path = tmp_path / "m5.csv"
     log = campaign_log(r)
     write_probe_log(path, log)
@@ -177,7 +177,9 @@ def test_a_hidden_effect_written_out_and_read_back_reads_as_in_memory(cause, see
     from scenarios.hidden import mfb_baseline, mfb_campaign, mfb_declared_noise
     from scenarios.mfb import campaign_log, default_machine
 
-    res, _, _ = mfb_campaign(cause, seed)
+    # written as mfb_baseline calls it (below): lru_cache keys on the call as written, so ``mfb_campaign(cause,
+    # seed)`` was a second entry and simulated the campaign again (session 38: about 2 s of CPU a case)
+    res, _, _ = mfb_campaign(cause, seed, name="mfb-3axis", bar_cal_error=True)
     path = tmp_path / "h.csv"
     write_probe_log(path, campaign_log(res))
     bl, ml = mfb_log_baseline(read_probe_log(path))

@@ -10,11 +10,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_the_pages_seed_1_figures_are_the_scripts():
+def test_the_pages_seed_1_figures_are_the_scripts(mfb_seed1_runs):
+    """The runs are the script's own (``mfb_paper_rows._runs()``, computed once for the session by the conftest's
+    ``mfb_seed1_runs``, which test_mfb_log_route.py and test_mfb_scenario.py read too)."""
     from scenarios import mfb_paper_rows
 
     doc = (ROOT / "docs" / "papers-mfb.md").read_text(encoding="utf-8")
-    cells = mfb_paper_rows.cells()
+    cells = mfb_paper_rows.cells(mfb_seed1_runs)
     assert len(cells) == 16
     # the k = 1 reading is quoted in the page's prose, cut at its line breaks: compare its figures
     k1 = cells.pop("k1").split("seed 1: ", 1)[1]
