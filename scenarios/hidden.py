@@ -986,7 +986,8 @@ def hidden_mfb(cause: str, seed: int, *, name: str = "mfb-3axis", bar_cal_error:
 
     # discovery reads the campaign's measurements (res.meas), not run()'s identification: since session 38 none is
     # made (simulate_only: the identification, its residual tests and the U95 were 1.2 of the 3.0 s CPU of a
-    # campaign with its discovery; the measurements bit for bit the same). (extraction=False: the step session 32 left out before that.)
+    # campaign with its discovery; the measurements bit for bit the same). (extraction=False: the step session 32
+    # left out before that.)
     res = run(name, seed=seed, mc_runs=0, hook=hook, extraction=False, bar_cal_error=bar_cal_error,
               simulate_only=True)
     return res, times, params

@@ -1,10 +1,11 @@
 """Session 38 (mfbfast38): ``scenarios.mfb.run(simulate_only=True)``, the campaign without its identification.
 
 scenarios.hidden's MFB campaigns are read by discovery through their measurements only; run() identified them,
-tested the residuals and propagated the U95 besides (1.2 of the 3.0 s CPU of a hidden campaign with its discovery). With ``simulate_only`` it
-returns after the measurements. Checked against the full run of the same arguments (a path that identifies, the
-reference): every measurement field and the campaign equal bit for bit (tolerance none: the same draws, in the same
-order, nothing after the measurements draws before them), with a hook (hidden_mfb's way) and with noise.
+tested the residuals and propagated the U95 besides (1.2 of the 3.0 s CPU of a hidden campaign with its discovery).
+With ``simulate_only`` it returns after the measurements. Checked against the full run of the same arguments (a path
+that identifies, the reference): every measurement field and the campaign equal bit for bit (tolerance none: the
+same draws, in the same order, nothing after the measurements draws before them), with a hook (hidden_mfb's way) and
+with noise.
 """
 
 import dataclasses
