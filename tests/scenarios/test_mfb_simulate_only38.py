@@ -64,3 +64,35 @@ def test_a_campaign_of_simulate_only_writes_the_same_log():
     kw = dict(seed=7, mc_runs=0)
     a, b = campaign_log(run("mfb-3axis", **kw, simulate_only=True)), campaign_log(run("mfb-3axis", **kw))
     assert a.meta == b.meta and _same(dict(a.columns), dict(b.columns))
+
+
+def test_the_hidden_bending_with_one_bar_per_shape_is_the_bar_built_per_measurement():
+    """hidden_mfb's bar_bending keeps one bent bar object per shape (session 38: 4 shapes over the 3-axis plan's 17
+    measurements; the bar's build and its touch plans made once). Reference: the hook as written before, a bar built
+    for every measurement (its rule copied here: the sag drawn from the seed's stream [seed, 7] as hidden_mfb draws
+    it, gravity through bar_gravity_A), run on the same seed: the measurements bit for bit (tolerance none)."""
+    from scenarios.hidden import UM, bar_gravity_A, hidden_mfb
+    from sim import artefacts as A
+
+    seed = 7
+    rng = np.random.default_rng([seed, 7])
+    rng.uniform(5, 15, 3), rng.choice([-1.0, 1.0], 3)  # the drift's draws, made first whatever the cause
+    sag = float(rng.uniform(1.0, 4.0)) * UM
+    built = []
+
+    def hook(i, spec, art, probe, machine):
+        rot = np.asarray(spec.rot_rad, float).reshape(1, -1) if len(spec.rot_rad) else None
+        g_A = bar_gravity_A(spec.T_W_A, machine.T_R_W_nominal(rot)[0])
+        E = np.asarray(art.info["E_MFB_m"], float)
+        s = np.linspace(-1, 1, len(E))
+        bend = sag * ((1 - s ** 2) ** 2 - np.mean((1 - s ** 2) ** 2))
+        built.append(A.multi_feature_bar(deviations_m=E + bend[:, None] * g_A[None, :]))
+        return built[-1], probe, machine
+
+    ref = run("mfb-3axis", seed=seed, mc_runs=0, hook=hook, extraction=False, simulate_only=True)
+    res, _, params = hidden_mfb("bar_bending", seed)
+    assert params["midspan_sag_um"] == sag / UM
+    assert len(built) == len(res.meas) == 17
+    for m, f in zip(res.meas, ref.meas):
+        for fld in dataclasses.fields(f):
+            assert _same(getattr(m, fld.name), getattr(f, fld.name)), (m.name, fld.name)
