@@ -756,12 +756,14 @@ def reversal_calibration(M_norm, M_rev, E_XX_cmm_m=None, *, pitch_m: float = MFB
     u[:, 0] = np.sqrt(uA[:, 0] ** 2 + u_sg ** 2)
     # coverage factor: Student t for the r - 1 degrees of freedom of the
     # repeats (type A; Welch-Satterthwaite with an infinite-dof step gauge)
-    from scipy.stats import t as student
+    # (scipy.special's stdtrit(nu, 0.975) is scipy.stats.t.ppf(0.975, nu) bit for bit, its _ppf, for the nu >= 1
+    # taken here; without importing scipy.stats: session 38, as core.fit.coverage_factor)
+    from scipy.special import stdtrit
 
     if r > 1:
         with np.errstate(divide="ignore", invalid="ignore"):
             nu = np.where(uA > 0, (r - 1) * u ** 4 / np.where(uA > 0, uA, 1) ** 4, np.inf)
-        k = np.where(np.isfinite(nu), student.ppf(0.975, np.maximum(nu, 1)), 2.0)
+        k = np.where(np.isfinite(nu), stdtrit(np.maximum(nu, 1), 0.975), 2.0)
     else:
         k = np.full_like(u, 2.0)
     return BarCalibration(E, u, k * u, r)

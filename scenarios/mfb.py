@@ -1488,7 +1488,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         bar_calibration=None, bar_true_m=None, draw_inputs: bool | None = None, lobing_m: tuple = (),
         machine_temperature_C: float = 20.0, stylus_dJ_m: dict | None = None,
         declared_ripple: dict | None = None, extraction: bool | None = None,
-        model_error_held: bool = True) -> ScenarioResult:
+        model_error_held: bool = True, simulate_only: bool = False) -> ScenarioResult:
     """Simulate the default realistic machine, run the plan, identify, compare.
 
     Parameters
@@ -1583,6 +1583,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         default). False skips them there (the U95 and covariance are the same: no share enters through a
         closed gate) and the tables' exact tails ``p`` where it opens (``model_error.p`` null), as the budget
         study's runs do (:func:`budget_run`, no JSON kept): most of a run's CPU.
+    simulate_only : bool
+        Stop after the simulated campaign (session 38): the result's ``meas``, ``campaign``, ``plan``,
+        ``n_touches``, ``strokes_m`` and ``J_m`` are a full run's, bit for bit (nothing after the measurements
+        draws from the seed's stream before them); no identification, U95 or truth (``result``, ``unc``,
+        ``truth`` None; ``doc`` only the campaign's head: format, scenario, machine, seed, noise_um,
+        touches, ``simulated_only`` true). For a caller that reads the measurements only
+        (:func:`scenarios.hidden.hidden_mfb`: discovery on the campaign; the identification, its residual
+        tests and the U95 were 1.2 of the 3.0 s CPU of a hidden campaign with its discovery).
     """
     from core import iso, mfb, volumetric as vol
     from core.exceptions import ConfigError
@@ -1716,6 +1724,11 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
                                     tuple(ms.rot_rad), J, G_cache[key], q_R=p_R,
                                     c_A=pl_ok.w_A + probe.stylus_r_m * pl_ok.wn_A, d_A=-pl_ok.wn_A,
                                     feature=tuple(t.feature), n_A=pl_ok.wn_A))
+    if simulate_only:  # the campaign alone: what a run identifies, nothing identified
+        doc = {"format": MFB_FORMAT, "scenario": name, "machine": plan.machine, "seed": seed, "noise_um": sigma_um,
+               "touches": int(n_touch), "simulated_only": True}
+        return ScenarioResult(plan, None, None, None, n_touch, time.time() - t0, doc, None, meas, axis_strokes_m(cfg),
+                              tuple(float(v) for v in cfg.J_m), _campaign_of(logs, E_cal_O, u_cal, dJ, cfg, probe))
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
     if progress is not None:
@@ -1845,10 +1858,15 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         doc["collision_check"] = collision
     if progress is not None:
         progress(steps, steps)
-    campaign = {"logs": tuple(logs), "E_cal_m": np.asarray(E_cal_O, float), "u_cal_m": np.asarray(u_cal, float),
-                "dJ_m": dJ, "rotary_points_R_m": dict(cfg.rotary_points_R_m), "sigma_m": float(probe.sigma_m)}
     return ScenarioResult(plan, res, unc, truth_g, n_touch, time.time() - t0, doc, slopes[0], meas,
-                          axis_strokes_m(cfg), tuple(float(v) for v in cfg.J_m), campaign)
+                          axis_strokes_m(cfg), tuple(float(v) for v in cfg.J_m),
+                          _campaign_of(logs, E_cal_O, u_cal, dJ, cfg, probe))
+
+
+def _campaign_of(logs, E_cal_O, u_cal, dJ: dict, cfg, probe) -> dict:
+    """:class:`ScenarioResult`'s ``campaign`` of a run (its field's description)."""
+    return {"logs": tuple(logs), "E_cal_m": np.asarray(E_cal_O, float), "u_cal_m": np.asarray(u_cal, float),
+            "dJ_m": dJ, "rotary_points_R_m": dict(cfg.rotary_points_R_m), "sigma_m": float(probe.sigma_m)}
 
 
 #: The residuals' model-error share in the U95 (:func:`core.volumetric.model_error_share`, review29b F2b):

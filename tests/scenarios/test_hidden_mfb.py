@@ -102,7 +102,7 @@ def test_the_hidden_drift_spans_the_plans_own_measurements(plan, monkeypatch):
         def __init__(self, p):
             self.plan = p
 
-    def fake_run(name, *, seed, mc_runs, hook, extraction, bar_cal_error):
+    def fake_run(name, *, seed, mc_runs, hook, extraction, bar_cal_error, simulate_only):
         p = PLANS[name]()
         cfg, _ = default_machine(p.machine)
         base = Machine(cfg)
