@@ -1120,9 +1120,10 @@ def volumetric(meas, chain: str, nodes: dict, rotary_points_R_m=None, times_s: d
             GW = np.einsum("ij,kjt->kit", R, np.asarray(m.G_A, float).reshape(k, 3, t)).reshape(3 * k, t)
             touch.append((np.arange(row, row + 3 * k), GW, np.asarray(m.d_A, float) @ R.T))
         row += 3 * k
-    # rows the model removes (the roll component of the mistake-proofing holes:
-    # zero in the design and the observation) carry nothing: left out
-    keep = np.any(d.A != 0, axis=1) | (d.y != 0)
+    # rows the model removes (the roll component of the mistake-proofing holes: zero in the design and the
+    # observation) carry nothing: left out, found by the pose's structure (core.volumetric.roll_rows). Until
+    # session 38 by their values (any A or y != 0 kept the row): a pose 1e-16 off its exact entries kept them
+    keep = ~np.concatenate([vol.roll_rows(m) for m in meas])
     new = np.cumsum(keep) - 1
     touch = [(new[r[keep[r]]], GW[keep[r]], dW) for r, GW, dW in touch]
     sel = np.flatnonzero(keep)
@@ -1240,6 +1241,8 @@ def _bar_calibration_columns(meas, sel, sigma_probe_m: float, u_cal: np.ndarray,
     normal (:func:`core.mfb.calibration_map`). Columns scaled by
     ``1 / sigma_probe_m``: ``L L^T`` beside the touches' gain ``G G^T`` is the
     rows' noise covariance over the probing variance."""
+    from . import volumetric as vol
+
     N = u_cal.shape[0]
     rows = []
     for m in meas:
@@ -1247,7 +1250,7 @@ def _bar_calibration_columns(meas, sel, sigma_probe_m: float, u_cal: np.ndarray,
         R = T[:3, :3]
         zA = R[:, 2]
         Pz = np.eye(3) - np.outer(zA, zA)
-        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
+        off = vol.mistake_proofing(m.O_A)
         blk = np.zeros((3 * len(m.holes), 3 * N))
         for a, h in enumerate(m.holes):
             blk[3 * a:3 * a + 3, 3 * (int(h) - 1):3 * int(h)] = Pz @ R if off[a] else R

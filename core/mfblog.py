@@ -174,8 +174,9 @@ def bar_pose_W(c_A: np.ndarray, p_W: np.ndarray) -> np.ndarray:
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
     R = Vt.T @ D @ U.T
     # a designed pose's exact entries (0, +-1: a bar along an axis, or a tilt in one plane) kept exact: the fit
-    # leaves them 1e-16 off, and core.volumetric then keeps a row a nominal pose makes exactly zero (the roll of
-    # the mistake-proofing holes: core.baseline.volumetric leaves such rows out only when they are zero)
+    # leaves them 1e-16 off, and core.volumetric then gives 1e-16 where a nominal pose gives exactly zero (the roll
+    # of the mistake-proofing holes; until session 38 core.baseline.volumetric left such rows out only when they
+    # were zero, now by the pose's structure, core.volumetric.roll_rows): the log's numbers the in-memory run's
     R[np.abs(R) < SNAP] = 0.0
     R[np.abs(np.abs(R) - 1.0) < SNAP] = np.sign(R[np.abs(np.abs(R) - 1.0) < SNAP])
     T = np.eye(4)

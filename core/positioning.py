@@ -399,13 +399,18 @@ def read_positioning_log(path: str | os.PathLike) -> PositioningLog:
         grouped as :func:`arrange` groups them), a torn last row (the probe log's rule,
         :func:`core.probelog.last_row_check`: a last row without an end of
         line with too few fields, a number cut to no number, or a status
-        other than ``ok``; one that still reads whole is kept with a warning).
+        other than ``ok``; one that still reads whole is kept with a warning),
+        a ``number_format`` line that does not hold (naming its file line,
+        the probe log's words) or a cell with more decimals than it declares.
     """
     text, src = _read_text(path, "a positioning log")
     return parse_positioning_log(text, source=src)
 
 
-def _split_meta(text: str, src: str, warnings: list | None = None) -> tuple[dict[str, str], list[str], int]:
+def _split_meta(text: str, src: str, warnings: list | None = None
+                ) -> tuple[dict[str, str], dict[str, int], list[str], int]:
+    """``(meta, meta_line, lines, i)``: the ``# key: value`` lines before the header, each key's file line
+    (``meta_line``, 1-based, for errors that name the line), the file's lines and the header's index."""
     if not text.strip():
         raise PositioningLogError(f"{src}: empty file")
     lines = csv_lines(text)
@@ -418,14 +423,14 @@ def _split_meta(text: str, src: str, warnings: list | None = None) -> tuple[dict
         i += 1
     if i >= len(lines):
         raise PositioningLogError(f"{src}: no header row (only metadata lines)")
-    return meta, lines, i
+    return meta, meta_line, lines, i
 
 
 def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog:
     """Parse ``positioning-log/1`` text (see :func:`read_positioning_log`)."""
     src = source
     meta_warnings: list[str] = []
-    meta, lines, i = _split_meta(text, src, meta_warnings)
+    meta, meta_line, lines, i = _split_meta(text, src, meta_warnings)
     fmt = meta.get("format")
     if fmt is None:
         raise PositioningLogError(f"{src}: no '# format: {FORMAT}' metadata line")
@@ -530,7 +535,8 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
         extra[h] = numbers(h, allow_empty=True) if _is_temp(h) else np.array(col[h], dtype=object)
     steps = _column_steps(meta, header, {"target": (tname, col[tname]),
                                          "measured": (mname, [c for c, o in zip(col[mname], ok) if o])}, src,
-                          whole={tname: col[tname], mname: col[mname]}, where=where)
+                          whole={tname: col[tname], mname: col[mname]}, where=where,
+                          meta_line=meta_line.get(NUMBER_FORMAT_KEY))
     log = PositioningLog(meta=meta, target=target, cycle=cyc.astype(np.int64), direction=direction,
                          measured=measured, t_s=t_s, status=status, extra=extra, source=src, warnings=warnings,
                          lines=np.asarray(line_of_row, dtype=np.int64), text_steps=steps)
@@ -540,7 +546,7 @@ def parse_positioning_log(text: str, source: str = "<memory>") -> PositioningLog
 
 def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str, list]], src: str,
                   scale: Mapping[str, float] | None = None, whole: Mapping[str, list] | None = None,
-                  where=None) -> dict:
+                  where=None, meta_line: int | None = None) -> dict:
     """:attr:`PositioningLog.text_steps` of the columns ``cells`` (key -> (column name, its cells' text)): the
     step of each column's most decimals, or what the metadata ``number_format`` declares (the probe log's line,
     :func:`core.probelog.parse_number_format`: vmt's words say the numbers are exact, ``decimals NAME=K`` a
@@ -550,14 +556,17 @@ def _column_steps(meta: Mapping[str, str], header, cells: Mapping[str, tuple[str
     A column declared to K decimals is held to it as the probe log's reader holds its columns (session 35,
     iso34's leftover): a cell of ``whole`` (column name -> every row's text, status aside) written with more
     decimals than K is refused, one line naming the row (``where(r)``), since the line would claim a step the
-    number does not have (before, the step was taken from the line and such a cell read silently)."""
+    number does not have (before, the step was taken from the line and such a cell read silently).
+    ``meta_line``: the ``number_format`` line's place in the file, named by its errors as the probe log's reader
+    names it (``FILE: line N: metadata number_format ...``; session 38: before, the positioning log's errors
+    named the file alone)."""
     declared = meta.get(NUMBER_FORMAT_KEY)
     exact, fixed = False, {}
     if declared is not None:
         from .exceptions import ProbeLogError
 
         try:
-            exact, fixed = parse_number_format(declared, header, src)
+            exact, fixed = parse_number_format(declared, header, src, meta_line)
         except ProbeLogError as e:
             raise PositioningLogError(str(e)) from None
     out = {}

@@ -490,6 +490,35 @@ def _extract(prep, tips, idx) -> dict:
     return out
 
 
+#: The bar's z_A within this angle (rad) of a W axis: a mistake-proofing hole's row along that axis is the roll
+#: component the model drops, empty by the model's structure (:func:`roll_rows`). 1e-12 as
+#: :data:`core.mfblog.SNAP`: a pose's rounding (written, read, fitted or turned by a computed angle: 1e-16) is
+#: within it; any real tilt (a designed one degrees, a placement error micro-radians) is far outside.
+ROLL_AXIS_TOL_RAD = 1.0e-12
+
+
+def mistake_proofing(O_A) -> np.ndarray:
+    """(k,) bool: which of the points ``O_A`` (k, 3), bar frame, are the mistake-proofing holes (1.5 mm off the
+    bar's axis along y_A; the others lie on it to the calibration's um): their roll is dropped (:data:`NUISANCE`)."""
+    return np.abs(np.asarray(O_A, float)[:, 1]) > 1e-4
+
+
+def roll_rows(m) -> np.ndarray:
+    """(3 k,) bool over measurement ``m``'s rows (its holes in order, each hole's W components x, y, z): the rows
+    the model empties, each mistake-proofing hole's component along a W axis that the bar's z_A lies along
+    (within :data:`ROLL_AXIS_TOL_RAD`): the roll, dropped from the residual and the design (:func:`_rows`).
+
+    Decided by the pose's structure, not by the rows' values (session 38): the values are exactly zero only
+    when the pose's other entries are, and a pose fitted from a log (:func:`core.mfblog.bar_pose_W` before its
+    snap) or turned by a computed angle leaves them 1e-16 off, which kept 34 empty rows in a baseline (423 for
+    389). A bar whose z_A lies along no W axis has no such row (its holes' three rows hold two components)."""
+    off = mistake_proofing(m.O_A)
+    zA = np.asarray(m.T_W_A, float)[:3, 2]
+    zA = zA / np.linalg.norm(zA)
+    along = np.array([np.hypot(*np.delete(zA, i)) <= ROLL_AXIS_TOL_RAD for i in range(3)])
+    return (off[:, None] & along[None, :]).ravel()
+
+
 def _prepare(m, chain, rotary_points, nodes) -> dict:
     """What :func:`_rows` computes of measurement ``m`` whatever theta: geometry, spline
     weights at the readings, the gain in W, the error-free tip positions (for the
@@ -504,7 +533,7 @@ def _prepare(m, chain, rotary_points, nodes) -> dict:
     p = {"g": g, "q": q, "k": k, "rot": rot, "T": T, "touches": _has_touches(m), "features": False,
          "name": m.name, "holes": tuple(int(h) for h in m.holes),
          "P": np.asarray(m.O_A, float) @ T[:3, :3].T + T[:3, 3], "Pz": np.eye(3) - np.outer(zA, zA),
-         "off": np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4}
+         "off": mistake_proofing(m.O_A)}
     if p["touches"]:
         qt = np.asarray(m.q_R, float)
         t = len(qt)
@@ -1153,7 +1182,7 @@ def _input_maps(res: VolumetricResult, meas, n_holes):
             blk[:, :, 3 + j] = np.cross(R[:, j], P - T[:3, 3])
         # the rows as the identification sees them: shifted holes without z_A
         zA = R[:, 2]
-        off = np.abs(np.asarray(m.O_A, float)[:, 1]) > 1e-4
+        off = mistake_proofing(m.O_A)
         blk[off] = np.einsum("ij,kjn->kin", np.eye(3) - np.outer(zA, zA), blk[off])
         Bp[r0:r0 + 3 * k, c:c + 6] = blk.reshape(3 * k, 6)
         r0 += 3 * k

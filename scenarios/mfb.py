@@ -1480,6 +1480,132 @@ def simulation_items(plan, art, probe, cfg_true, program: dict, machines: dict, 
     return items
 
 
+@dataclass(frozen=True)
+class _Judged:
+    """An identification (``res_g``, in its gauge) judged against the inputs' noise model: what :func:`run` and
+    :func:`identify_log` compute alike (:func:`_judge`) and report alike (:func:`_report_tail`)."""
+    res_g: object           # core.volumetric's result in the identification's gauge
+    res: object             # its ISO 230-1 view (straightness against the end-point line)
+    L_iso: np.ndarray       # gauge -> ISO view
+    meas: list
+    sigma_m: float          # probing noise (k = 1), m
+    noisy: bool
+    draw: bool              # the placements are drawn (run: draw_inputs; a log: its noise): u_place enters
+    u_cal: np.ndarray       # the bar certificate's u (the U95's and the covariance's)
+    u_cal_fit: np.ndarray   # the bar's u the residual tests hold (run: zero where the bar is not drawn)
+    u_place: np.ndarray     # the placements' tolerance (6,)
+    u_place_fit: np.ndarray | None  # u_place where draw, else None
+    declared: dict
+    cal_map: object
+    rip_g: list | None
+    noise: object
+    lof: object
+    share: object
+    gate: bool
+    me_g: np.ndarray | None
+    unc: object
+
+
+def _judge(res_g, meas, chain: str, rp: dict, *, sigma_m: float, noisy: bool, draw: bool, u_cal, u_cal_fit,
+           u_place, declared: dict, mc_runs: int, rng, model_error_held: bool = True) -> _Judged:
+    """The calls :func:`run` and :func:`identify_log` make after the identification ``res_g``, in this order:
+    its ISO view, the declared ripples' columns, the residuals' noise model, lack of fit, the model-error share
+    behind :data:`MFB_MODEL_ERROR_SHARE` and its gate (:data:`MFB_MODEL_ERROR_GATE`), the U95 (Monte Carlo
+    ``mc_runs`` from ``rng``, or linear). ``draw``: the placements' tolerance ``u_place`` enters (:func:`run`'s
+    drawn inputs; a log's probing noise); ``u_cal_fit`` the bar's u the residual tests hold; ``model_error_held``
+    as :func:`run`'s (False: no share computed where the gate stays closed, no exact tails)."""
+    from core import mfb, volumetric as vol
+
+    L_iso = vol.iso_map(res_g.design)
+    res = vol.iso_view(res_g)
+    cal_map = mfb.calibration_map()  # the bar's heights as its rods give them
+    rip_g = [vol.ripple_columns(res_g, meas, chain, s, a, p, rp)
+             for s, (a, p) in declared.items()] or None  # (the gauge's; the report's below, L_iso of them)
+    up = np.asarray(u_place, float)
+    u_place_fit = up if draw else None
+    # the residuals' model-error share (review29b F2b): per motion table a fine table the residuals show the
+    # tables miss (z > 3 over the probing noise), propagated into the node values and the U95.
+    # The residuals' noise model once for the three tests (it was computed by each: session 34, bn34)
+    noise = vol.residual_noise(res_g, meas, sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map)
+    lof = vol.lack_of_fit(res_g, meas, sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
+    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
+    # (every table's exact tail where the gate opens: the shares are reported with their p; elsewhere only where
+    # it could decide, core.volumetric.EXACT_TAIL_NEAR_LEVEL)
+    share = (vol.model_error_share(res_g, meas, sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map,
+                                   exact_p=model_error_held, all_exact=opens, noise=noise)
+             if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
+    # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
+    # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model
+    # misses structure (MFB_MODEL_ERROR_GATE)
+    gate = share is not None and opens
+    me_g = share.columns if gate and share.entered else None
+    # the U95 whenever an input has an uncertainty: the probing noise, a declared ripple, or the bar's
+    # calibration u (given, noise or not: a noise-free run's U95 is the calibration's alone, linear, or
+    # Monte Carlo with mc_runs); none only for a noise-free run with u_cal 0 and no Monte Carlo asked
+    unc = (vol.uncertainty(res, meas, sigma_m, u_cal, runs=mc_runs, rng=rng, u_place=u_place_fit, cal_map=cal_map,
+                           ripples=None if rip_g is None else [L_iso @ c for c in rip_g],
+                           model_error=None if me_g is None else L_iso @ me_g)
+           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
+    return _Judged(res_g, res, L_iso, meas, sigma_m, noisy, draw, u_cal, u_cal_fit, up, u_place_fit, declared,
+                   cal_map, rip_g, noise, lof, share, gate, me_g, unc)
+
+
+def _report_tail(doc: dict, j: _Judged, *, identified_on: dict, nodes: dict, head: dict | None = None,
+                 u95_scope: str | None = None, u95_growth: bool = False) -> np.ndarray:
+    """What :func:`run` and :func:`identify_log` add alike to their document ``doc`` after its errors, in this
+    order: ``estimate`` (vmt-estimate/1, from the covariance; its ``identified_on``), ``head``'s keys (run:
+    ``machine``), ``declared_ripple``, ``u95_scope`` (given: run's unseen-ripple note), ``u95_inputs`` and
+    ``u95_method``, ``model_error`` (with ``u95_growth`` when asked: run's), ``lack_of_fit`` and its note on
+    ``nodes``, ``between_nodes`` and its note. Returns the covariance (the gauge's)."""
+    from core import iso, volumetric as vol
+
+    declared, unc, me_g = j.declared, j.unc, j.me_g
+    cov_g = vol.covariance(j.res_g, j.meas, j.sigma_m, j.u_cal, j.u_place_fit, cal_map=j.cal_map, ripples=j.rip_g,
+                           model_error=me_g)
+    doc["estimate"] = vol.estimate(j.res_g, cov_g)  # vmt-estimate/1
+    doc["estimate"]["identified_on"] = identified_on
+    if declared:
+        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
+    doc.update(head or {})
+    if declared:
+        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
+                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
+    if u95_scope:
+        doc["u95_scope"] = u95_scope
+    if unc is not None:  # what the U95 holds (a noise-free run: the bar calibration's u alone, and a ripple)
+        doc["u95_inputs"] = [k for k, on in (("probing noise", j.noisy), ("bar calibration", bool(np.any(j.u_cal > 0))),
+                                             ("placement", j.draw and bool(np.any(j.u_place > 0))),
+                                             ("declared ripple", bool(declared)),
+                                             ("model error (residuals)", me_g is not None)) if on]
+        doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
+                             else "linear propagation (JCGM 100 eq. 13), k = 2")
+    # the residuals against the inputs' noise model (review29b F2): a note when the tables miss structure
+    if j.share is not None:
+        doc["model_error"] = j.share.as_dict()
+        if not j.gate:  # past z = 3 but the residuals as a whole fit: held out of the U95
+            doc["model_error"]["held"] = doc["model_error"].pop("entered")
+            doc["model_error"]["entered"] = []
+            doc["model_error"].pop("u")
+        if u95_growth and unc is not None and me_g is not None:  # how much the share widens the linear U95
+            u_s = np.sqrt(np.einsum("ij,ij->i", j.L_iso @ me_g, j.L_iso @ me_g))
+            u0 = np.sqrt(np.maximum(unc.u_lin ** 2 - u_s ** 2, 0.0))
+            ok = u0 > 0  # (nodes with a U95)
+            g = unc.u_lin[ok] / u0[ok] - 1.0
+            doc["model_error"]["u95_growth"] = {"median": float(np.median(g)), "max": float(np.max(g))}
+    if j.lof is not None:
+        doc["lack_of_fit"] = j.lof.as_dict()
+        if not j.lof.fits:
+            doc["model_fit_note"] = lack_of_fit_note(j.lof, nodes)
+    # between two nodes of a table (review33a F5): a local error the whole-residual test dilutes
+    bn = (vol.between_nodes_fit(j.res_g, j.meas, j.sigma_m, j.u_cal_fit, j.u_place_fit, cal_map=j.cal_map,
+                                noise=j.noise) if MFB_BETWEEN_NODES and j.noisy else None)
+    if bn is not None:
+        doc["between_nodes"] = bn.as_dict()
+        if not bn.fits:
+            doc["between_nodes_note"] = between_nodes_note(bn)
+    return cov_g
+
+
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = U_CAL_UM, bar_cal_error: bool = True,
@@ -1734,41 +1860,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     if progress is not None:
         progress(steps - 2, steps)
     res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact, extraction=extraction)
-    # reported in the ISO 230-1 form: straightness against the end-point
-    # reference line (identified and injected alike)
-    L_iso = vol.iso_map(res_g.design)
-    res = vol.iso_view(res_g)
     if progress is not None:
         progress(steps - 1, steps)
-    cal_map = mfb.calibration_map()  # the bar's heights as its rods give them (the draw above is so)
-    rip_g = [vol.ripple_columns(res_g, meas, cfg.chain, s, a, p, dict(cfg.rotary_points_R_m))
-             for s, (a, p) in declared.items()] or None  # (the gauge's; the report's below, L_iso of them)
-    # the residuals' model-error share (review29b F2b): per motion table a fine table the residuals show the
-    # tables miss (z > 3 over the probing noise), propagated into the node values and the U95
+    # the residual tests hold the bar's u only where the true bar is drawn from it (or given)
     u_cal_fit = u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal)
-    u_place_fit = np.asarray(u_place, float) if draw else None
-    # the residuals' noise model once for the three tests below (it was computed by each: session 34, bn34)
-    noise = vol.residual_noise(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map)
-    lof = vol.lack_of_fit(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
-    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
-    # (every table's exact tail where the gate opens: the shares are reported with their p; elsewhere only where
-    # it could decide, core.volumetric.EXACT_TAIL_NEAR_LEVEL)
-    share = (vol.model_error_share(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map,
-                                   exact_p=model_error_held, all_exact=opens, noise=noise)
-             if MFB_MODEL_ERROR_SHARE and noisy and (opens or model_error_held) else None)
-    # the tables' shares are 18 tests of a skewed statistic (realistic machine, 40 seeds: some table past z = 3
-    # on 10 runs): they enter only when the residuals' lack-of-fit test (one test, level 1e-3) says the model
-    # misses structure (MFB_MODEL_ERROR_GATE)
-    gate = share is not None and opens
-    me_g = share.columns if gate and share.entered else None
-    # the U95 whenever an input has an uncertainty: the probing noise, a declared ripple, or the bar's
-    # calibration u (given, noise or not: a noise-free run's U95 is the calibration's alone, linear, or
-    # Monte Carlo with mc_runs); none only for a noise-free run with u_cal 0 and no Monte Carlo asked
-    unc = (vol.uncertainty(res, meas, probe.sigma_m, u_cal, runs=mc_runs, rng=rng,
-                           u_place=np.asarray(u_place, float) if draw else None, cal_map=cal_map,
-                           ripples=None if rip_g is None else [L_iso @ c for c in rip_g],
-                           model_error=None if me_g is None else L_iso @ me_g)
-           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
+    j = _judge(res_g, meas, cfg.chain, rp, sigma_m=probe.sigma_m, noisy=noisy, draw=draw, u_cal=u_cal,
+               u_cal_fit=u_cal_fit, u_place=u_place, declared=declared, mc_runs=mc_runs, rng=rng,
+               model_error_held=model_error_held)
+    res, L_iso, unc = j.res, j.L_iso, j.unc
     # truth in the same gauge
     d = res.design
     truth = np.zeros(len(res.theta))
@@ -1793,53 +1892,14 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     truth_g = L_iso @ truth_raw
     slopes = (vol.end_point_slopes(d, res_g.theta), vol.end_point_slopes(d, truth_raw))
     doc = _document(name, plan, res, unc, truth_g, n_touch, seed, sigma_um, slopes)
-    cov_g = vol.covariance(res_g, meas, probe.sigma_m, u_cal, np.asarray(u_place, float) if draw else None,
-                           cal_map=cal_map, ripples=rip_g, model_error=me_g)
-    doc["estimate"] = vol.estimate(res_g, cov_g)  # vmt-estimate/1
     from core.state import identified_on
 
-    doc["estimate"]["identified_on"] = identified_on(   # its tables run along Z: no single height
+    unseen = [(s, p) for s, p in unseen_ripple(errs) if not _declared_covers(declared, s, p)]
+    cov_g = _report_tail(doc, j, identified_on=identified_on(   # its tables run along Z: no single height
         cfg.name, cfg.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in plan.measurements}), None,
-        (float(t_touch.min()), float(t_touch.max())) if t_touch.size else None)  # the campaign's clock (F8)
-    if declared:
-        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
-    doc["machine"] = cfg.name
-    if declared:
-        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
-                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
-    if unseen := [(s, p) for s, p in unseen_ripple(errs) if not _declared_covers(declared, s, p)]:
-        doc["u95_scope"] = unseen_ripple_note(unseen)
-    if unc is not None:  # what the U95 holds (a noise-free run: the bar calibration's u alone, and a ripple)
-        doc["u95_inputs"] = [k for k, on in (("probing noise", noisy), ("bar calibration", bool(np.any(u_cal > 0))),
-                                             ("placement", draw and bool(np.any(np.asarray(u_place, float) > 0))),
-                                             ("declared ripple", bool(declared)),
-                                             ("model error (residuals)", me_g is not None)) if on]
-        doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
-                             else "linear propagation (JCGM 100 eq. 13), k = 2")
-    # the residuals against the inputs' noise model (review29b F2): a note when the tables miss structure
-    if share is not None:
-        doc["model_error"] = share.as_dict()
-        if not gate:  # past z = 3 but the residuals as a whole fit: held out of the U95
-            doc["model_error"]["held"] = doc["model_error"].pop("entered")
-            doc["model_error"]["entered"] = []
-            doc["model_error"].pop("u")
-        if unc is not None and me_g is not None:  # how much the share widens the linear U95 (nodes with a U95)
-            u_s = np.sqrt(np.einsum("ij,ij->i", L_iso @ me_g, L_iso @ me_g))
-            u0 = np.sqrt(np.maximum(unc.u_lin ** 2 - u_s ** 2, 0.0))
-            ok = u0 > 0
-            g = unc.u_lin[ok] / u0[ok] - 1.0
-            doc["model_error"]["u95_growth"] = {"median": float(np.median(g)), "max": float(np.max(g))}
-    if lof is not None:
-        doc["lack_of_fit"] = lof.as_dict()
-        if not lof.fits:
-            doc["model_fit_note"] = lack_of_fit_note(lof, plan.nodes)
-    # between two nodes of a table (review33a F5): a local error the whole-residual test dilutes
-    bn = (vol.between_nodes_fit(res_g, meas, probe.sigma_m, u_cal_fit, u_place_fit, cal_map=cal_map, noise=noise)
-          if MFB_BETWEEN_NODES and noisy else None)
-    if bn is not None:
-        doc["between_nodes"] = bn.as_dict()
-        if not bn.fits:
-            doc["between_nodes_note"] = between_nodes_note(bn)
+        (float(t_touch.min()), float(t_touch.max())) if t_touch.size else None),  # the campaign's clock (F8)
+        nodes=plan.nodes, head={"machine": cfg.name}, u95_scope=unseen_ripple_note(unseen) if unseen else None,
+        u95_growth=True)
     if unc is not None:  # the count beside what the model expects of it (drawn last: nothing above moves)
         doc["within_u95"] = within_u95(doc["errors"], L_iso @ cov_g @ L_iso.T, d.slices, rng)
     if varying:  # what `injected` is for a table that drifts in time (review30b F2)
@@ -1853,7 +1913,7 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
             "span_units": "um (urad for angles, um/m for squareness): max over the nodes of the drift over the campaign"}
     doc["bar"] = _bar_doc(E_cal_O, u_cal, art.info["E_MFB_m"],
                           "declared" if bar_calibration is None else "calibration given (e.g. reversal on a CMM)",
-                          cal_map if bar_calibration is None else None)
+                          j.cal_map if bar_calibration is None else None)
     if collision is not None:
         doc["collision_check"] = collision
     if progress is not None:
@@ -3216,13 +3276,14 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
 
     ``sigma_m`` the probe's repeatability (k = 1), m; ``u_place`` the placements' tolerance (:data:`U_PLACE`:
     the bar set by hand); ``mc_runs`` Monte Carlo runs of the U95 (0: the linear propagation), drawn from
-    ``rng``; ``declared_ripple`` as :func:`run`'s (a type B term in the U95 and the covariance). The same calls
-    in the same order as :func:`run` (the identification, the residuals' noise model,
-    lack of fit, model-error share behind :data:`MFB_MODEL_ERROR_SHARE` and its gate, the U95, the covariance,
-    the estimate, between the nodes): on :func:`run`'s own campaign written as a log (:func:`campaign_log`) the
-    same numbers (tests/scenarios/test_mfb_log_route.py). Returns the ``vmt-identify-mfb/1`` document.
+    ``rng``; ``declared_ripple`` as :func:`run`'s (a type B term in the U95 and the covariance). After the
+    identification, :func:`run`'s own code: :func:`_judge` (the residuals' noise model, lack of fit, model-error
+    share behind :data:`MFB_MODEL_ERROR_SHARE` and its gate, the U95) and :func:`_report_tail` (the covariance,
+    the estimate, between the nodes), a log's placements entering with its probing noise where :func:`run`'s
+    enter when drawn: on :func:`run`'s own campaign written as a log (:func:`campaign_log`) the same numbers
+    (tests/scenarios/test_mfb_log_route.py). Returns the ``vmt-identify-mfb/1`` document.
     """
-    from core import iso, mfb, volumetric as vol
+    from core import iso, volumetric as vol
     from core.state import identified_on
 
     meas = list(ml.meas)
@@ -3232,26 +3293,12 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
     res_g = vol.identify_volumetric(meas, ml.chain, ml.nodes, rp)
     if progress is not None:
         progress(1, 3)
-    L_iso = vol.iso_map(res_g.design)
-    res = vol.iso_view(res_g)
-    cal_map = mfb.calibration_map()
-    rip_g = [vol.ripple_columns(res_g, meas, ml.chain, s, a, p, rp) for s, (a, p) in declared.items()] or None
-    u_cal = np.asarray(ml.certificate.u_m, float)
     noisy = sigma_m > 0
-    up = np.asarray(u_place, float)
-    u_place_fit = up if noisy else None
-    noise = vol.residual_noise(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map)
-    lof = vol.lack_of_fit(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, noise=noise)
-    opens = not MFB_MODEL_ERROR_GATE or (lof is not None and not lof.fits)
-    share = (vol.model_error_share(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, exact_p=True,
-                                   all_exact=opens, noise=noise)
-             if MFB_MODEL_ERROR_SHARE and noisy else None)
-    gate = share is not None and opens
-    me_g = share.columns if gate and share.entered else None
-    unc = (vol.uncertainty(res, meas, sigma_m, u_cal, runs=mc_runs, rng=rng, u_place=up if noisy else None,
-                           cal_map=cal_map, ripples=None if rip_g is None else [L_iso @ c for c in rip_g],
-                           model_error=None if me_g is None else L_iso @ me_g)
-           if mc_runs or noisy or declared or np.any(u_cal > 0) else None)
+    u_cal = np.asarray(ml.certificate.u_m, float)
+    # a log's placements enter with its probing noise (run()'s drawn inputs), its bar's u always
+    j = _judge(res_g, meas, ml.chain, rp, sigma_m=sigma_m, noisy=noisy, draw=noisy, u_cal=u_cal, u_cal_fit=u_cal,
+               u_place=u_place, declared=declared, mc_runs=mc_runs, rng=rng)
+    res, unc = j.res, j.unc
     if progress is not None:
         progress(2, 3)
     slopes = vol.end_point_slopes(res_g.design, res_g.theta)
@@ -3270,39 +3317,9 @@ def identify_log(ml, *, sigma_m: float, mc_runs: int = 0, rng: np.random.Generat
            if res.iterations else "first order (eqs 8-12)", "gauss_newton_iterations": res.iterations,
            "conventions": list(res.design.gauge), "rms_residual_um": res.rms_m * 1e6, "errors": errors,
            **({"not_compensated": nc} if (nc := rotary_not_compensated(res.chain)) else {})}
-    cov_g = vol.covariance(res_g, meas, sigma_m, u_cal, up if noisy else None, cal_map=cal_map, ripples=rip_g,
-                           model_error=me_g)
-    doc["estimate"] = vol.estimate(res_g, cov_g)
-    doc["estimate"]["identified_on"] = identified_on(
+    _report_tail(doc, j, identified_on=identified_on(
         machine, ml.chain, sorted({tuple(float(v) * 1e3 for v in m.J_m) for m in meas}), None,
-        ml.t_range_s if np.all(np.isfinite(ml.t_range_s)) else None)
-    if declared:
-        doc["estimate"]["method"] += "; declared ripples (type B, unknown phase): " + ", ".join(declared)
-        doc["declared_ripple"] = {s: {"amplitude_" + ("urad" if iso.symbol(s).angular else "um"): a * 1e6,
-                                      "period_mm": p * 1e3} for s, (a, p) in declared.items()}
-    if unc is not None:
-        doc["u95_inputs"] = [k for k, on in (("probing noise", noisy), ("bar calibration", bool(np.any(u_cal > 0))),
-                                             ("placement", noisy and bool(np.any(up > 0))),
-                                             ("declared ripple", bool(declared)),
-                                             ("model error (residuals)", me_g is not None)) if on]
-        doc["u95_method"] = (f"Monte Carlo (JCGM 101), {unc.runs} runs" if unc.runs
-                             else "linear propagation (JCGM 100 eq. 13), k = 2")
-    if share is not None:
-        doc["model_error"] = share.as_dict()
-        if not gate:
-            doc["model_error"]["held"] = doc["model_error"].pop("entered")
-            doc["model_error"]["entered"] = []
-            doc["model_error"].pop("u")
-    if lof is not None:
-        doc["lack_of_fit"] = lof.as_dict()
-        if not lof.fits:
-            doc["model_fit_note"] = lack_of_fit_note(lof, ml.nodes)
-    bn = (vol.between_nodes_fit(res_g, meas, sigma_m, u_cal, u_place_fit, cal_map=cal_map, noise=noise)
-          if MFB_BETWEEN_NODES and noisy else None)
-    if bn is not None:
-        doc["between_nodes"] = bn.as_dict()
-        if not bn.fits:
-            doc["between_nodes_note"] = between_nodes_note(bn)
+        ml.t_range_s if np.all(np.isfinite(ml.t_range_s)) else None), nodes=ml.nodes)
     if progress is not None:
         progress(3, 3)
     return doc

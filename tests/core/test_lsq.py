@@ -400,18 +400,21 @@ def test_rank_threshold_either_side_of_rank_tol():
     """RANK_TOL (1e-12: a relative eigenvalue of the column-scaled normal matrix, singular-value ratio 1e-6):
     two nearly collinear columns whose relative eigenvalue is 1e-11 (10 x above) are solved, and at 1e-13
     (10 x below) refused as one unidentifiable combination, named. A threshold 1e4 x smaller accepts the second;
-    1e2 x larger refuses the first. (The eigenvalue ~1e-13 is computed to ~1e-16 absolute: 0.1 %.)"""
+    1e2 x larger refuses the first. (The eigenvalue ~1e-13 is computed to 1.1e-16 absolute at most: 0.11 %.)"""
     from core.lsq import RANK_TOL
 
     assert RANK_TOL == 1e-12
     A_ok, r_ok = _near_collinear(2 * np.sqrt(1e-11))
     A_bad, r_bad = _near_collinear(2 * np.sqrt(1e-13))
     assert r_ok == pytest.approx(1e-11, rel=1e-4, abs=0)
-    # approx37: for the lead. abs=1e-12 is pytest's default, written out: it is this check's whole tolerance
-    # (it accepts 0 to 1.1e-12, past RANK_TOL). r_bad, the closed form of the test's own matrix (not core's
-    # figure), is 9.992e-14, 8e-4 off 1e-13 (1 - c cancels: the docstring's 1e-16 absolute), so rel=1e-4 with
-    # abs=0 FAILS; rel=1e-3, abs=0 (the docstring's 0.1 %) passes.
-    assert r_bad == pytest.approx(1e-13, rel=1e-4, abs=1e-12)
+    # r_bad is the closed form of the test's own matrix (not core's figure): (1 - c) / (1 + c) ~ (1 - c) / 2 with
+    # 1 - c = 2e-13, where c = 1 / sqrt(1 + eps^2) is three roundings of numbers near 1 (1 + eps^2: half an ulp of
+    # 2.2e-16, halved by the sqrt; the sqrt: 1.1e-16; the division: 0.55e-16), 2.2e-16 at most in c, so at most
+    # 1.1e-16 in r_bad: 1.1e-3 of 1e-13. rel=1.1e-3, abs=0 is that bound (the docstring's 0.1 %). The double is
+    # the same on every IEEE platform (+, sqrt and / correctly rounded): 9.992e-14, 8.0e-4 off. (Session 37 left
+    # abs=1e-12 written out here, pytest's hidden default: it was the whole tolerance, accepting 0 to 1.1e-12,
+    # past RANK_TOL, so the check could not see a matrix on the wrong side of the threshold.)
+    assert r_bad == pytest.approx(1e-13, rel=1.1e-3, abs=0)
     b = np.array([1.0, 2.0, 0.5, 1.5])
     sol = solve(A_ok, b, names=["p", "q"])
     # the fit is b's projection on span(u, v) = (b.u) u + (b.v) v = 2.5 u - v, by hand; through the normal matrix

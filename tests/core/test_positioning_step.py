@@ -46,6 +46,32 @@ def test_number_format_line_is_honoured():
         parse_positioning_log(_rounded(3, "# number_format: shortest round-trip; decimals X_mm=3"))
 
 
+
+@pytest.mark.parametrize("line", [
+    "# number_format: shortest round-trip; decimals X_mm=3",         # a column the header does not have
+    "# number_format: shortest round-trip; decimals measured_mm=x",  # K not a whole number
+    "# number_format: shortest round-trip; six decimals",            # not 'decimals COLUMN=K' after the words
+    "# number_format: decimals measured_mm=3",                      # vmt's list without vmt's words (session 37)
+])
+def test_a_malformed_number_format_line_is_named_by_its_file_line(line):
+    """Session 38 (dup38): a malformed ``number_format`` line in a positioning log was refused naming the file
+    alone (``d.csv: metadata number_format ...``), where the probe log's reader names the line too and every
+    other error of this reader names the line or row. Now the probe log's words to the letter, with the line
+    the test itself put the metadata on (counted from the text, not from the reader)."""
+    from core.exceptions import ProbeLogError
+    from core.probelog import parse_number_format
+
+    text = _rounded(3, line)
+    n = text.splitlines().index(line) + 1
+    with pytest.raises(PositioningLogError) as e:
+        parse_positioning_log(text, source="nf.csv")
+    msg = str(e.value)
+    assert msg.startswith(f"nf.csv: line {n}: metadata number_format") and "\n" not in msg, msg
+    header = next(r for r in text.splitlines() if r.startswith("target")).split(",")
+    with pytest.raises(ProbeLogError) as p:   # the probe log reader's message for the same line
+        parse_number_format(line.split(":", 1)[1].strip(), header, "nf.csv", n)
+    assert msg == str(p.value)
+
 def test_coarse_step_warns_and_its_u_is_step_over_sqrt12():
     log = parse_positioning_log(_rounded(2), source="r2.csv")
     res = iso230_2(arrange(log))

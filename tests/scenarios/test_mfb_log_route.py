@@ -200,6 +200,38 @@ def test_a_hidden_effect_written_out_and_read_back_reads_as_in_memory(cause, see
     assert discover_baseline(bl_h).to_report()["cause"] == cause
 
 
+
+def test_a_pose_off_its_exact_entries_by_rounding_keeps_the_baselines_rows(run3):
+    """Session 38 (dup38): core.baseline.volumetric left out the mistake-proofing holes' roll rows (the model drops
+    each one's component along the bar's z_A) only where they were exactly zero, which they are only when the
+    pose's other entries are exactly 0 and +-1: a pose 1e-16 off them (mfbcli37: the log reader's fitted pose,
+    423 rows for the in-memory 389; snapped in the reader since) kept 34 empty rows. Now found by the pose's
+    structure (core.volumetric.roll_rows): every measurement's pose turned by a rounding-level rotation gives the
+    same rows. Every bar of the 3-axis plan has its z_A along a W axis, so each mistake-proofing hole (1.5 mm
+    off the bar's axis along y_A) loses one row: 3 x holes - mistake-proofing holes, counted here from O_A."""
+    from dataclasses import replace
+
+    from core.baseline import volumetric
+    from core.kinematics import exp_so3
+    from scenarios.mfb import default_machine
+
+    r, _ = run3
+    cfg, _ = default_machine(r.plan.machine)
+    args = (cfg.chain, r.plan.nodes, dict(cfg.rotary_points_R_m))
+    turned = []
+    for i, m in enumerate(r.meas):
+        T = np.array(m.T_W_A, float)
+        T[:3, :3] = T[:3, :3] @ exp_so3(np.array([3e-16, -2e-16, 1e-16]) * (i + 1))  # 3.7e-16 (i + 1) rad
+        assert not np.array_equal(T, m.T_W_A)
+        turned.append(replace(m, T_W_A=T))
+    want = sum(3 * len(m.holes) - int(np.sum(np.abs(np.asarray(m.O_A)[:, 1]) > 1e-3)) for m in r.meas)
+    bl, bl_t = volumetric(r.meas, *args), volumetric(turned, *args)
+    assert len(bl.rows) == len(bl_t.rows) == want == 389, (len(bl.rows), len(bl_t.rows), want)
+    assert np.array_equal(bl.rows, bl_t.rows)
+    # the turns, 6.3e-15 rad at most, move a point 1 m out by 6.3e-15 m: the rows (m, up to 1.5e-3) by 1.0e-15
+    # (measured); 1e-12 is a thousand times that
+    np.testing.assert_allclose(bl_t.y, bl.y, rtol=0, atol=1e-12)
+
 # --------------------------------------------------------------------------- bad input: one line, exit 2
 def _edited(path, tmp_path, *, drop_meta=(), drop_cols=(), rows=None, name="bad.csv"):
     from dataclasses import replace
