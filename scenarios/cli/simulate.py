@@ -309,7 +309,9 @@ def _run_mfb_plan(args) -> int:
     from scenarios.cli.guard import progress_line
 
     with progress_line(f"simulate {args.artefact}: steps") as bar:
-        r = run(args.artefact, seed=seed, noise_um=args.noise_um, mc_runs=0, machine=spec, progress=bar)
+        # the campaign alone (``simulate_only``: the log is a full run's, touch for touch; nothing identified)
+        r = run(args.artefact, seed=seed, noise_um=args.noise_um, mc_runs=0, machine=spec, progress=bar,
+                simulate_only=True)
         log = campaign_log(r, {"errors": "study" if spec is None else (args.errors or "study"), "seed": str(seed),
                                "scenario": args.artefact})
         from core.probelog import write_probe_log
@@ -317,7 +319,7 @@ def _run_mfb_plan(args) -> int:
         write_probe_log(args.out, log, special=True)
     from scenarios.cli.guard import said
 
-    print(f"{said(args.out)}: campaign of {log.n} touches on {args.artefact} ({r.doc['measurements']} "
-          f"measurements, {r.doc['setups']} set-ups), machine {r.doc['machine']}, seed {seed}; "
+    print(f"{said(args.out)}: campaign of {log.n} touches on {args.artefact} ({len(r.plan.measurements)} "
+          f"measurements, {len(r.plan.setups)} set-ups), machine {r.doc['machine']}, seed {seed}; "
           f"vmt identify / vmt discover read it")
     return 0
