@@ -183,6 +183,11 @@ def test_closed_loop_reports_progress(tmp_path, mfb_notes_skipped):
     total = {n for _, n in seen}
     assert len(total) == 1 and seen[-1][0] == seen[-1][1]               # one total, reached at the end
     assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))            # never backwards
+    # each run counts in percent of its CPU (session 38): the touches simulated and fitted at 12, identified at
+    # 43 (a count per measurement read 17 of 19 at 13 % of the run)
+    runs = sum(1 for k, _ in seen if k % 100 == 12)
+    assert runs >= 1 and total == {100 * runs}
+    assert {12, 43} <= {k % 100 for k, _ in seen}
 
 
 # --------------------------------------------------------------------------- 2. what a state was identified on
