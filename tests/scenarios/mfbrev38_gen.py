@@ -272,15 +272,17 @@ def plan():
 
 
 def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.0, place_urad=40.0,
-             scale=1.0, cert_u_um=(0.2, 0.35, 0.35), effect=None, effect_size=1.0, truth=None, bar_sd_um=(3.0, 1.5), only=None):
+             scale=1.0, cert_u_um=(0.2, 0.35, 0.35), effect=None, effect_size=1.0, truth=None,
+             bar_sd_um=(3.0, 1.5), only=None):
     """One campaign: (rows, meta, truth dict). ``noise_um``: the probe's standard deviation (k = 1) along the
     approach; ``cert_noise``: the certificate differs from the real bar by a draw of its stated u.
-    ``effect`` (discovery): None, ``"drift"`` (the machine grows along X with time, a thermal drift between
-    placements: every X reading at the time t reads ``-effect_size * 3 um * t/t_end`` per 100 mm of X),
-    ``"bending"`` (the bar sags between its supports: rods and holes lowered by ``effect_size * 3 um`` at mid
-    length, a parabola, in every placement), ``"lobing"`` (stylus TX triggers late by ``effect_size * 1.0 um
-    * cos(3 phi)`` with phi the approach's azimuth in the machine's XY plane). ``only``: the set-ups to
-    write (names of :func:`plan`), default all; ``truth``: a :class:`Truth` (default drawn)."""
+    ``effect`` (discovery): None; ``"drift"`` (the X scale grows with time, a thermal drift between and within
+    placements: ``effect_size * 10 ppm`` at the campaign's end, 0 at its start); ``"bending"`` (the bar sags
+    between its supports along gravity's part across it (gravity the machine's -Z; a standing bar does not):
+    ``effect_size * 3 um`` at mid length relative to the end holes, ``(1 - s^2)^2`` of s from -1 to 1 over the
+    holes); ``"lobing"`` (stylus TX triggers late by ``effect_size * 1.0 um * cos(3 phi)``, TY by
+    ``effect_size * 0.8 um * cos(2 phi)``, phi the approach's azimuth in the machine's XY plane).
+    ``only``: the set-ups to write (names of :func:`plan`), default all; ``truth``: a :class:`Truth` (default drawn)."""
     rng = np.random.default_rng(seed)
     truth = truth if truth is not None else Truth(rng, shape, scale)
     bar = TrueBar(rng, *bar_sd_um)
@@ -290,10 +292,9 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
     w_A = np.array([t[2] for t in touches])
     wn_A = np.array([t[3] for t in touches])
     c_A = w_A + STYLUS_R_MM * wn_A
-    if effect == "bending":
-        sag = effect_size * 3e-3 * (1.0 - ((w_A[:, 0] - 275.0) / 275.0) ** 2)  # mm, 0 at the ends
-    else:
-        sag = np.zeros(len(w_A))
+    half = hole_x_mm(N_HOLES) / 2.0
+    sag = effect_size * 3e-3 * (1.0 - ((w_A[:, 0] - half) / half) ** 2) ** 2 if effect == "bending" \
+        else np.zeros(len(w_A))                         # mm, 0 at the end holes
     setups = [s for s in plan() if only is None or s[0] in only]
     n_meas = sum(len(s[3]) for s in setups)
     t_end = n_meas * len(touches) * 2.0
@@ -304,6 +305,9 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
         w = rng.normal(0.0, place_urad, 3) * URAD
         dR = exp_so3(w)                                 # placement error in A: A_true = A_nom . [dR | v]
         R_true, p_true = R @ dR, p_nom + R @ v
+        g_A = R.T @ np.array([0.0, 0.0, -1.0])
+        g_A = g_A - g_A[0] * np.eye(3)[0]               # gravity across the bar, in A (0 for a standing bar)
+        sag_A = sag[:, None] * g_A[None, :]             # the surface moved down by the sag
         for st in styli:
             J = np.array(STYLI_MM[st])
             c_W = c_A @ R.T + p_nom                     # nominal tip centres (the log's Xn_mm..)
@@ -311,16 +315,17 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
             d_W = -n_W                                  # approach: against the normal
             s = np.zeros(len(c_W))
             for it in range(6):                         # secant/Newton on the trigger along the approach
-                g = _gap(bar, truth, feats, c_W + s[:, None] * d_W, J, R_true, p_true, sag)
-                g2 = _gap(bar, truth, feats, c_W + (s + 1e-4)[:, None] * d_W, J, R_true, p_true, sag)
+                g = _gap(bar, truth, feats, c_W + s[:, None] * d_W, J, R_true, p_true, sag_A)
+                g2 = _gap(bar, truth, feats, c_W + (s + 1e-4)[:, None] * d_W, J, R_true, p_true, sag_A)
                 s = s - g * 1e-4 / (g2 - g)
             reading = c_W + s[:, None] * d_W
-            if effect == "lobing" and st == "TX":
+            if effect == "lobing" and st in ("TX", "TY"):
                 phi = np.arctan2(d_W[:, 1], d_W[:, 0])
-                reading = reading + (effect_size * 1.0e-3 * np.cos(3.0 * phi))[:, None] * d_W
+                lobe = 1.0e-3 * np.cos(3.0 * phi) if st == "TX" else 0.8e-3 * np.cos(2.0 * phi)
+                reading = reading + (effect_size * lobe)[:, None] * d_W
             times = t_s + 2.0 * np.arange(1, len(c_W) + 1)
             if effect == "drift":
-                reading[:, 0] -= effect_size * 3e-3 * (times / t_end) * (reading[:, 0] + J[0]) / 100.0
+                reading[:, 0] -= effect_size * 10e-6 * (times / t_end) * (reading[:, 0] + J[0])
             if noise_um > 0:
                 reading = reading + (rng.normal(0.0, noise_um, len(c_W)) * 1e-3)[:, None] * d_W
             for k in range(len(c_W)):
@@ -349,11 +354,9 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
     return rows, meta, tr
 
 
-def _gap(bar, truth, feats, reading, J, R_true, p_true, sag):
+def _gap(bar, truth, feats, reading, J, R_true, p_true, sag_A):
     tip = truth.tip_mm(reading + J, J)                 # where the stylus really is, W, mm
-    a = (tip - p_true) @ R_true                         # in the real bar's frame
-    a = a.copy()
-    a[:, 2] += sag                                      # a sagging bar: the surface lower = the stylus higher
+    a = (tip - p_true) @ R_true - sag_A                 # in the real bar's frame; a sagging bar's surface moved
     g = np.empty(len(a))
     for f in dict.fromkeys(feats):
         idx = [k for k, x in enumerate(feats) if x == f]
