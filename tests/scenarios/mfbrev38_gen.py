@@ -273,7 +273,8 @@ def plan():
 
 def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.0, place_urad=40.0,
              scale=1.0, cert_u_um=(0.2, 0.35, 0.35), effect=None, effect_size=1.0, truth=None,
-             bar_sd_um=(3.0, 1.5), only=None):
+             bar_sd_um=(3.0, 1.5), only=None, noise_seed=None,
+             cert_seed=None):
     """One campaign: (rows, meta, truth dict). ``noise_um``: the probe's standard deviation (k = 1) along the
     approach; ``cert_noise``: the certificate differs from the real bar by a draw of its stated u.
     ``effect`` (discovery): None; ``"drift"`` (the X scale grows with time, a thermal drift between and within
@@ -282,8 +283,11 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
     ``effect_size * 3 um`` at mid length relative to the end holes, ``(1 - s^2)^2`` of s from -1 to 1 over the
     holes); ``"lobing"`` (stylus TX triggers late by ``effect_size * 1.0 um * cos(3 phi)``, TY by
     ``effect_size * 0.8 um * cos(2 phi)``, phi the approach's azimuth in the machine's XY plane).
-    ``only``: the set-ups to write (names of :func:`plan`), default all; ``truth``: a :class:`Truth` (default drawn)."""
+    ``only``: the set-ups to write (names of :func:`plan`), default all; ``truth``: a :class:`Truth` (default
+    drawn); ``noise_seed``: the probe noise's own generator (default the seed's): the same machine, bar and
+    placements, other touches; ``cert_seed``: the certificate's draw's own generator (default the seed's)."""
     rng = np.random.default_rng(seed)
+    rng_noise = rng if noise_seed is None else np.random.default_rng([noise_seed, 38])
     truth = truth if truth is not None else Truth(rng, shape, scale)
     bar = TrueBar(rng, *bar_sd_um)
     t_s, rows = 0.0, []
@@ -327,7 +331,7 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
             if effect == "drift":
                 reading[:, 0] -= effect_size * 10e-6 * (times / t_end) * (reading[:, 0] + J[0])
             if noise_um > 0:
-                reading = reading + (rng.normal(0.0, noise_um, len(c_W)) * 1e-3)[:, None] * d_W
+                reading = reading + (rng_noise.normal(0.0, noise_um, len(c_W)) * 1e-3)[:, None] * d_W
             for k in range(len(c_W)):
                 rows.append(dict(setup=name, target=touches[k][1], t_s=times[k], X_mm=reading[k, 0],
                                  Y_mm=reading[k, 1], Z_mm=reading[k, 2], Xn_mm=c_W[k, 0], Yn_mm=c_W[k, 1],
@@ -339,7 +343,8 @@ def generate(seed, *, shape="poly", noise_um=0.0, cert_noise=False, place_um=40.
     u_um = np.tile(np.asarray(cert_u_um, float), (N_HOLES, 1))
     u_um[0] = 0.0                                       # O_1 is the frame's origin: 0 by definition
     if cert_noise:
-        E_um = E_um + rng.normal(0.0, 1.0, E_um.shape) * u_um
+        rng_cert = rng if cert_seed is None else np.random.default_rng([cert_seed, 3838])
+        E_um = E_um + rng_cert.normal(0.0, 1.0, E_um.shape) * u_um
     meta = {"format": "probe-log/1", "artefact": "mfb", "machine": f"mfbrev38 generator seed {seed}",
             "kinematic_chain": "[w b X Y Z t]", "stylus_r_mm": repr(STYLUS_R_MM),
             "stylus_offsets_mm": "; ".join(f"{k}=" + ",".join(repr(x) for x in v) for k, v in STYLI_MM.items()),
