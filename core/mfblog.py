@@ -32,6 +32,7 @@ What is missing is refused in one line naming it (:class:`~core.exceptions.Confi
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -337,6 +338,9 @@ def _styli(log, rows) -> tuple[np.ndarray, dict]:
     return np.full(len(rows), "J", object), {"J": J}
 
 
+#: The feature names the points of interest are fitted from (core.mfb ignores others): named in a refusal.
+_FEATURE_NAME = re.compile(r"(hole|rod|faceL|faceR)\d+")
+
 REQUIRED_COLUMNS = ("feature", "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz")
 
 
@@ -468,7 +472,11 @@ def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB) ->
     try:
         pois = points_of_interest_batched(parts, geom)
     except VmtError as e:   # (FitError: a feature missing or too few touches on one)
-        raise ConfigError(f"{src}: the points of interest cannot be fitted: {e}") from None
+        names = sorted({str(f).strip() for f in t.feature})
+        odd = [f for f in names if not _FEATURE_NAME.fullmatch(f)]
+        hint = (f" (the features are named holeNN, rodNN, faceLNN, faceRNN; this log's other names: "
+                f"{', '.join(odd[:6])}{', ...' if len(odd) > 6 else ''})") if odd else ""
+        raise ConfigError(f"{src}: the points of interest cannot be fitted: {e}{hint}") from None
     E, u = np.asarray(cert.E_m, float), np.asarray(cert.u_m, float)
     if E.shape != (geom.n_holes, 3) or u.shape != (geom.n_holes, 3):
         raise ConfigError(f"the bar calibration ({cert.source}) must be ({geom.n_holes}, 3) deviations and u")

@@ -144,7 +144,9 @@ def test_bad_mfb_logs_are_refused_in_one_line(poly_log, tmp_path, capsys, case):
     rows = rows[:316 * 6]        # the X bars: enough to be read, refused before any identification
     m = dict(meta)
     said = {"no certificate": "the bar's calibration", "too few touches on a hole": "'hole03'",
-            "too few touches on a rod": "'rod04'", "a face missing": "faceL04", "features renamed": "0 and 0",
+            "too few touches on a rod": "'rod04'", "a face missing": "faceL04",
+            "features renamed": "0 and 0 (the features are named holeNN, rodNN, faceLNN, faceRNN; this log's other "
+                                "names: bore01, bore02, bore03, bore04, bore05, bore06, ...)",
             "truncated": "torn last row", "only metadata": "no header row"}[case]
     seen = {}
 
