@@ -32,6 +32,7 @@ What is missing is refused in one line naming it (:class:`~core.exceptions.Confi
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,6 +65,12 @@ MEASUREMENT_COLUMN = "measurement"
 MAX_NODES = 9
 #: A fitted bar pose's rotation entries within this of 0 or +-1 are taken as exactly 0 or +-1 (:func:`bar_pose_W`).
 SNAP = 1.0e-12
+#: The log's holes (their axes from the nominal contact points and normals, ``wx_mm``.., ``wnx``..) must sit where
+#: the bar's design puts them (:data:`core.mfb.MFB`: every pitch from hole 1's axis, the mistake-proofing holes
+#: shifted in y) to this, mm: the identification takes the points' nominal places from that design, so a log of
+#: another bar, or of this bar in other units (m, um), is refused naming the hole, not identified against the
+#: wrong bar (the same 0.01 mm as a certificate's ``x_mm``, ``scenarios.mfb.BAR_X_TOL_MM``; session 38).
+HOLE_PLACE_TOL_MM = 0.01
 #: Within a set-up, every stylus's touches must give one bar pose (:func:`bar_pose_W`) to this, m: the nominal
 #: columns are a perfect machine's, so they agree to their printing.
 POSE_TOL_M = 1.0e-6
@@ -189,6 +196,39 @@ def bar_pose_W(c_A: np.ndarray, p_W: np.ndarray) -> np.ndarray:
     return T
 
 
+def check_hole_places(w_A: np.ndarray, wn_A: np.ndarray, feature, geom=MFB, src: str = "") -> None:
+    """Refuse (ConfigError, naming the first hole off) a log whose holes are not the bar's design: each hole's
+    axis (x, y in the bar's frame A) from its touches' nominal contact points ``w_A`` and normals ``wn_A``
+    (m; the contact point is the axis plus the radius against the normal, which points into the hole: least
+    squares for the axis and the radius) must be ((i - 1) pitch, shift_i) within :data:`HOLE_PLACE_TOL_MM`.
+    A hole whose touches do not fix an axis (fewer than two distinct normals) is left to the fit, which
+    refuses it by name."""
+    feature = np.asarray(feature, object)
+    for f in dict.fromkeys(feature):
+        name = str(f).strip()
+        if not (name.startswith("hole") and name[4:].isdigit()):
+            continue
+        i = int(name[4:])
+        idx = np.flatnonzero(feature == f)
+        n = np.asarray(wn_A, float)[idx, :2]
+        if len(idx) < 2 or np.linalg.matrix_rank(n, tol=1e-6) < 2:
+            continue
+        # axis c and radius R: w = c - R n  ->  [I | -n] (c, R) = w
+        A = np.zeros((2 * len(idx), 3))
+        A[0::2, 0] = A[1::2, 1] = 1.0
+        A[:, 2] = -n.ravel()
+        c = np.linalg.lstsq(A, np.asarray(w_A, float)[idx, :2].ravel(), rcond=None)[0][:2]
+        want = np.array([(i - 1) * geom.pitch_m, geom.shift_of(i)]) if 1 <= i <= geom.n_holes else None
+        if want is None or np.max(np.abs(c - want)) > HOLE_PLACE_TOL_MM * MM:
+            where = (f"where the bar's design puts it at x = {want[0] / MM:.4g}, y = {want[1] / MM:.4g} mm"
+                     if want is not None else f"a hole the bar does not have (it has {geom.n_holes})")
+            raise ConfigError(
+                f"{src}: the bar in its wx_mm.. columns is not vmt's multi-feature bar: {name}'s axis at x = "
+                f"{c[0] / MM:.6g}, y = {c[1] / MM:.6g} mm in the bar's frame, {where} (holes every "
+                f"{geom.pitch_m / MM:g} mm from hole01's axis, the frame's origin; within {HOLE_PLACE_TOL_MM} mm): "
+                "a log in other units than mm, or of another bar")
+
+
 def derived_nodes(meas, chain: str, rotary_points_R_m=None) -> dict:
     """The error tables' nodes where the log's line gives none: per linear axis, the axis positions (reading +
     J) of the nominal points of interest (the bar's design in its nominal pose) of the bars that lie along that
@@ -299,6 +339,9 @@ def _styli(log, rows) -> tuple[np.ndarray, dict]:
     return np.full(len(rows), "J", object), {"J": J}
 
 
+#: The feature names the points of interest are fitted from (core.mfb ignores others): named in a refusal.
+_FEATURE_NAME = re.compile(r"(hole|rod|faceL|faceR)\d+")
+
 REQUIRED_COLUMNS = ("feature", "wx_mm", "wy_mm", "wz_mm", "wnx", "wny", "wnz")
 
 
@@ -401,6 +444,7 @@ def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB, pr
             raise ConfigError(f"{src}: its {ROTARY_POINTS_KEY} line names {extra[0]!r}, not a rotary axis of "
                               f"its chain {chain}")
     w_A, wn_A = t.w_A, t.wn_A
+    check_hole_places(w_A, wn_A, t.feature, geom, src)
     r_m = r_mm * MM
     c_A = w_A + r_m[:, None] * wn_A
     parts, specs = [], []
@@ -433,7 +477,11 @@ def read_mfb_log(log, certificate: BarCertificate | None = None, *, geom=MFB, pr
     try:
         pois = points_of_interest_batched(parts, geom)
     except VmtError as e:   # (FitError: a feature missing or too few touches on one)
-        raise ConfigError(f"{src}: the points of interest cannot be fitted: {e}") from None
+        names = sorted({str(f).strip() for f in t.feature})
+        odd = [f for f in names if not _FEATURE_NAME.fullmatch(f)]
+        hint = (f" (the features are named holeNN, rodNN, faceLNN, faceRNN; this log's other names: "
+                f"{', '.join(odd[:6])}{', ...' if len(odd) > 6 else ''})") if odd else ""
+        raise ConfigError(f"{src}: the points of interest cannot be fitted: {e}{hint}") from None
     E, u = np.asarray(cert.E_m, float), np.asarray(cert.u_m, float)
     if E.shape != (geom.n_holes, 3) or u.shape != (geom.n_holes, 3):
         raise ConfigError(f"the bar calibration ({cert.source}) must be ({geom.n_holes}, 3) deviations and u")
