@@ -17,7 +17,7 @@ tests/scenarios/mfbrev38_gen.py writes a multi-feature bar's log from the docs, 
   which names the wrong cause), and the docs' other bad inputs: one line, exit 2, nothing written.
 
 Noisy coverage, non-polynomial truths and discovery were measured outside the suite (CPU): the report
-/work/team/s38/reports/mfbrev38.md and docs/discovery.md "Session 38: ..." give the figures.
+/work/team/s38/reports/mfbrev38.md and docs/discovery-studies.md "Session 38: ..." give the figures.
 """
 
 import json
