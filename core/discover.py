@@ -3072,13 +3072,16 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         extra = {k: v[planar] for k, v in extra.items()}
     bl_mod.check_planar(t)
     yaw = selfcal.yaw_for_chain(chain)
+    chosen = grid_step_mm is None and settings.select_grid and len(settings.grid_steps_mm) > 1
+    regrid, finer = GRID_AFTER_OUTLIERS and chosen, FINER_MAP_CHECK and chosen
+    # (the finest identifiable grid's design, built by BIC's comparison, kept for the finer-map check's call on the
+    # same touches: core.baseline.planar's designs; FINER_DESIGN_REUSE)
+    designs = {} if finer and FINER_DESIGN_REUSE else None
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid, yaw=yaw,
-                       extra=extra)
+                       extra=extra, designs=designs)
     note = f"{counted(left_out, 'touch')} {LEFT_OUT_NOTE}"
     if left_out:
         bl = _with_convention(bl, note)
-    chosen = grid_step_mm is None and settings.select_grid and len(settings.grid_steps_mm) > 1
-    regrid, finer = GRID_AFTER_OUTLIERS and chosen, FINER_MAP_CHECK and chosen
     # (a search again, on another grid, draws as the first did)
     rng0 = copy.deepcopy(rng) if (regrid or finer) and rng is not None else None
     # the baseline holds what the search reads: the caller's touches can go (core.baseline.planar_data); the two
@@ -3113,7 +3116,14 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         return d
     kept = (dataclasses.replace(bl.data.touches, **dropped), bl.data.extra)  # (the touches again)
     return _finer_map_check(d, kept, settings, yaw, copy.deepcopy(rng0) if rng0 is not None else None,
-                            note if left_out else None)
+                            note if left_out else None, designs=designs)
+
+
+#: :func:`discover`'s finer-map check builds the finest identifiable grid's design from the one BIC's comparison
+#: built in the first :func:`core.baseline.planar` call (its ``designs`` cache, checked against the same touches),
+#: and that call takes the first identifiable grid without building the grids after it. Exact (the same design,
+#: factorisation and choice; the reports the same to the bit, session 38, fast38): False builds it again.
+FINER_DESIGN_REUSE = True
 
 
 #: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`;
@@ -3210,18 +3220,20 @@ def _u95_rms_of(C, bl: Baseline) -> float:
     return float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0))))
 
 
-def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note) -> Discovery:
+def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note, designs=None) -> Discovery:
     """``d``, or the discovery on the finest identifiable error map where that one reads ``none``
     (:data:`FINER_MAP_CHECK`); ``kept`` the (touches, extra) ``d``'s baseline was made from, ``yaw`` its yaw table.
     With :data:`FINER_MAP_SHORTCUT` the search on the finer map is not run where what it would give is known
-    beforehand not to be taken (the same answer, :func:`_finer_map_search`)."""
+    beforehand not to be taken (the same answer, :func:`_finer_map_search`). ``designs``: the first planar call's
+    cache (:data:`FINER_DESIGN_REUSE`)."""
     u95_d = _u95_rms(d)
     if FINER_MAP_SHORTCUT and not np.isfinite(u95_d):
         return d  # (no finer discovery passes ``u95 <= ratio * nan``: the test below always returns d)
     t, extra = kept
     g0 = d.baseline.info["grid_step_mm"]
     try:
-        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra)
+        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra,
+                           designs=designs)
     except (IdentifiabilityError, ConfigError):
         return d
     if not bl.identifiable or bl.info["grid_step_mm"] >= g0:
