@@ -1673,9 +1673,9 @@ def _settle_outliers(Q: np.ndarray, y: np.ndarray, start, alpha: float) -> tuple
 
 #: :func:`_robust_outliers`' answers, keyed by everything they depend on (the bytes of ``X`` and ``y``, the screen's
 #: set, alpha, cap, rank tolerance and the module's constants): a discovery screens the same design and
-#: observations with the same set again in its later steps: 6 of 32 calls on five gen_a campaigns, each a linear program
-#: of 0.1-0.5 s (:func:`_lad_residuals`, 16 % of the discover tests' CPU). Exact (the same function of the same
-#: values; session 38, fast38). False: computed every time.
+#: observations with the same set again in its later steps: 6 of 32 calls on five gen_a campaigns, each a linear
+#: program of 0.1-0.5 s (:func:`_lad_residuals`: 16 % of the discover time of tests/core/test_discover_misses.py).
+#: Exact (the same function of the same values; session 38, fast38). False: computed every time.
 ROBUST_OUTLIERS_MEMO = True
 _ROBUST = Memo(32)
 
