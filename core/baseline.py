@@ -697,8 +697,38 @@ def _bic(rss: float, n: int, k: int) -> float:
     return n * np.log(max(rss, 1e-300) / n) + k * np.log(n)
 
 
+#: Largest dense design (bytes, n x p doubles) :func:`planar` keeps in a caller's ``designs`` cache (the first
+#: identifiable grid's, for the finer-map check's call on the same touches; its reflectors beside it, twice that
+#: held while the caller's first search runs). Session 38 (fast38).
+DESIGN_CACHE_BYTES = 16 << 20
+
+
+#: :func:`planar` not comparing grids (``select_grid`` False on several) stops at the first identifiable one (the
+#: one it takes; the grids after it were built and factored for nothing: four of the finer-map check's five designs
+#: where 22 mm is identifiable). Exact; False builds them all, as before session 38 (fast38).
+PLANAR_STOP_AT_FIRST = True
+
+
+def _same_touches(a: Touches, b: Touches) -> bool:
+    """Whether two touches hold the same values in every field (the same arrays, as a discovery's copies share
+    them, at once; else compared; NaN equal to NaN)."""
+    def same(u, v):
+        if u is v:
+            return True
+        if isinstance(u, np.ndarray) or isinstance(v, np.ndarray):
+            if not (isinstance(u, np.ndarray) and isinstance(v, np.ndarray)) or u.shape != v.shape \
+                    or u.dtype != v.dtype:
+                return False
+            return bool(np.array_equal(u, v, equal_nan=u.dtype.kind in "fc"))
+        if isinstance(u, dict) and isinstance(v, dict):
+            return u.keys() == v.keys() and all(same(u[k], v[k]) for k in u)
+        return u == v
+    return all(same(getattr(a, f.name), getattr(b, f.name)) for f in dataclasses.fields(Touches))
+
+
 def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 30.0, 40.0, 55.0, 80.0), *,
-           select_grid: bool = True, yaw: str = "ECY", extra: dict | None = None) -> Baseline:
+           select_grid: bool = True, yaw: str = "ECY", extra: dict | None = None,
+           designs: dict | None = None) -> Baseline:
     """The 2D self-calibration baseline (eqs 1-18) on the grid the data choose.
 
     Touches with normals out of the XY plane must be removed by the caller.
@@ -712,6 +742,17 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     (a symmetric part at C 90 deg apart), the finest grid that meets eq 6
     is used all the same: residuals do not depend on the gauge, and the
     workpiece is then reported as not identifiable.
+
+    Where the grid is not compared (``select_grid`` False on several
+    grids: the finest identifiable taken), the grids after the first
+    identifiable one are not built (none of them could be taken).
+    ``designs``: a cache a caller keeps between its calls on the same
+    touches (:func:`core.discover.discover`'s first call and its finer-map
+    check's): a call keeps there the first identifiable grid's design (a
+    dense one up to :data:`DESIGN_CACHE_BYTES`), and a call that takes the
+    first identifiable grid takes it from there rather than build the grids
+    again, where the touches, grids, yaw and rank tolerance are the same
+    (the same design, factorisation and choice: exact).
 
     Raises
     ------
@@ -775,6 +816,17 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
     td = dataclasses.replace(t, pn_R=t.pn_R - sh, p_R=t.p_R - sh)
     tol = precision_rank_tol(t, sh) if PRECISION_RANK else RANK_TOL
     tries = [(st, ab) for st in steps for ab in ((False, True) if PLANAR_ABBE_BIC and not PLANAR_ABBE else (None,))]
+    compare = (select_grid or len(steps) == 1) and len(tries) > 1
+    # what determines the first identifiable grid's design and choice (with the touches: _same_touches)
+    key = (tuple(tries), yaw, tol, PRECISION_RANK, PLANAR_ABBE, PLANAR_ABBE_BIC, PLANAR_ABBE_GATE,
+           DENSE_DESIGN_BYTES)
+    cached = designs.get("first") if designs is not None else None
+    if not compare and cached is not None and cached[0] == key and _same_touches(cached[1], t):
+        s0, des0, A0, C0, d0, names0, levels0, qr0, _ = cached[2]
+        A0 = A0.copy()  # (the holder's own arrays: no baseline shares the cached ones)
+        best = [0.0, [s0, des0, A0, C0.copy(), d0.copy(), names0, levels0, (qr0[0], qr0[1].copy(), A0), None], 0.0]
+        tries = []
+    first_seen = False  # (the first identifiable try met: the one a cache keeps)
     for st, ab in tries:
         grid = centred_grid(td.pn_R, st * MM)
         try:
@@ -819,10 +871,14 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
         # identifiable beyond the gauge: the gauge rows fix exactly the null space
         nullity = A.shape[1] - rank
         ident_here = nullity <= np.linalg.matrix_rank(C)
+        if ident_here and not first_seen:
+            first_seen = True
+            if designs is not None and not big and 16 * A.size <= DESIGN_CACHE_BYTES:
+                # (kept before better() forms this item's Q: its unformed factorisation, as built)
+                designs["first"] = (key, t, list(item))
         if ident_here:  # the grid BIC chooses (the first on a tie), or the first: only the best kept so far
             # (BIC chooses the grid, or, on one grid given, whether the Abbe columns are taken)
-            win, score, bound = (better(item, rank, best) if (select_grid or len(steps) == 1) and len(tries) > 1
-                                 else (not best, 0.0, 0.0))
+            win, score, bound = (better(item, rank, best) if compare else (not best, 0.0, 0.0))
         if big:  # a long log's: kept as the sparse design, the block design made again for the grid chosen (one
             # dense block held at a time)
             item = [st, des, A_sparse, C, d, names, levels, None, None]
@@ -839,6 +895,8 @@ def planar(t: Touches, grid_step_mm: float | None = None, grid_steps_mm=(22.0, 3
             best = [score, item, bound]
             fallback = None
         del item, A, Q, qr, des, h  # (the next grid's design is built without this one's, unless it is the best)
+        if best and not compare and PLANAR_STOP_AT_FIRST:
+            break  # (the first identifiable grid taken: no later one could be)
     cands = [best[1]] if best else []
     if not cands and fallback is None:
         raise IdentifiabilityError(f"no baseline: the 2D self-calibration does not meet eq 6 on grids of "

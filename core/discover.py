@@ -297,6 +297,7 @@ import contextvars
 import copy
 import dataclasses
 import functools
+import hashlib
 import itertools
 import re
 import weakref
@@ -1670,8 +1671,38 @@ def _settle_outliers(Q: np.ndarray, y: np.ndarray, start, alpha: float) -> tuple
     return order, float(r @ r) / max(dof, 1)
 
 
+#: :func:`_robust_outliers`' answers, keyed by everything they depend on (the bytes of ``X`` and ``y``, the screen's
+#: set, alpha, cap, rank tolerance and the module's constants): a discovery screens the same design and
+#: observations with the same set again in its later steps: 6 of 32 calls on five gen_a campaigns, each a linear
+#: program of 0.1-0.5 s (:func:`_lad_residuals`: 16 % of the discover time of tests/core/test_discover_misses.py).
+#: Exact (the same function of the same values; session 38, fast38). False: computed every time.
+ROBUST_OUTLIERS_MEMO = True
+_ROBUST = Memo(32)
+
+
 def _robust_outliers(X: np.ndarray, y: np.ndarray, out: list, alpha: float, cap: int, tol: float,
                      Q: np.ndarray | None = None) -> list:
+    """:func:`_robust_outliers_of`, once for each set of values (:data:`ROBUST_OUTLIERS_MEMO`)."""
+    n = len(y)
+    if (not out and not OUTLIER_ROBUST_START_EMPTY) or n > OUTLIER_ROBUST_START_MAX_ROWS or n < 8:
+        return out
+    if not ROBUST_OUTLIERS_MEMO or Q is not None:
+        return _robust_outliers_of(X, y, out, alpha, cap, tol, Q)
+    X, y = np.asarray(X), np.asarray(y)
+    h = hashlib.blake2b(digest_size=32)
+    for a in (X, y):
+        h.update(repr((a.shape, a.dtype.str)).encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    key = (h.hexdigest(), tuple(int(i) for i in out), float(alpha), int(cap), float(tol), OUTLIER_ROBUST_START_EMPTY,
+           OUTLIER_ROBUST_START_SIGMA, OUTLIER_ROBUST_START_MAX_ROWS)
+    got = _ROBUST.get(key)
+    if got is None:
+        got = _ROBUST.put(key, tuple(_robust_outliers_of(X, y, out, alpha, cap, tol)))
+    return list(got)
+
+
+def _robust_outliers_of(X: np.ndarray, y: np.ndarray, out: list, alpha: float, cap: int, tol: float,
+                        Q: np.ndarray | None = None) -> list:
     """The one-pass screen's outliers ``out``, or the set a robust start settles on (:data:`OUTLIER_ROBUST_START`).
 
     The screen removes one row at a time and never tests a removed row
@@ -3072,13 +3103,16 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         extra = {k: v[planar] for k, v in extra.items()}
     bl_mod.check_planar(t)
     yaw = selfcal.yaw_for_chain(chain)
+    chosen = grid_step_mm is None and settings.select_grid and len(settings.grid_steps_mm) > 1
+    regrid, finer = GRID_AFTER_OUTLIERS and chosen, FINER_MAP_CHECK and chosen
+    # (the finest identifiable grid's design, built by BIC's comparison, kept for the finer-map check's call on the
+    # same touches: core.baseline.planar's designs; FINER_DESIGN_REUSE)
+    designs = {} if finer and FINER_DESIGN_REUSE else None
     bl = bl_mod.planar(t, grid_step_mm, settings.grid_steps_mm, select_grid=settings.select_grid, yaw=yaw,
-                       extra=extra)
+                       extra=extra, designs=designs)
     note = f"{counted(left_out, 'touch')} {LEFT_OUT_NOTE}"
     if left_out:
         bl = _with_convention(bl, note)
-    chosen = grid_step_mm is None and settings.select_grid and len(settings.grid_steps_mm) > 1
-    regrid, finer = GRID_AFTER_OUTLIERS and chosen, FINER_MAP_CHECK and chosen
     # (a search again, on another grid, draws as the first did)
     rng0 = copy.deepcopy(rng) if (regrid or finer) and rng is not None else None
     # the baseline holds what the search reads: the caller's touches can go (core.baseline.planar_data); the two
@@ -3113,7 +3147,14 @@ def discover(t: Touches, *, grid_step_mm: float | None = None, settings: Setting
         return d
     kept = (dataclasses.replace(bl.data.touches, **dropped), bl.data.extra)  # (the touches again)
     return _finer_map_check(d, kept, settings, yaw, copy.deepcopy(rng0) if rng0 is not None else None,
-                            note if left_out else None)
+                            note if left_out else None, designs=designs)
+
+
+#: :func:`discover`'s finer-map check builds the finest identifiable grid's design from the one BIC's comparison
+#: built in the first :func:`core.baseline.planar` call (its ``designs`` cache, checked against the same touches),
+#: and that call takes the first identifiable grid without building the grids after it. Exact (the same design,
+#: factorisation and choice; the reports the same to the bit, session 38, fast38): False builds it again.
+FINER_DESIGN_REUSE = True
 
 
 #: Whether the error-map grid is chosen again, by BIC, on the touches the outlier screen kept (:func:`discover`;
@@ -3210,18 +3251,20 @@ def _u95_rms_of(C, bl: Baseline) -> float:
     return float(np.sqrt(np.mean(4 * np.maximum(np.einsum("ij,jk,ik->i", Pm, C, Pm), 0))))
 
 
-def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note) -> Discovery:
+def _finer_map_check(d: Discovery, kept, settings: Settings, yaw: str, rng, note, designs=None) -> Discovery:
     """``d``, or the discovery on the finest identifiable error map where that one reads ``none``
     (:data:`FINER_MAP_CHECK`); ``kept`` the (touches, extra) ``d``'s baseline was made from, ``yaw`` its yaw table.
     With :data:`FINER_MAP_SHORTCUT` the search on the finer map is not run where what it would give is known
-    beforehand not to be taken (the same answer, :func:`_finer_map_search`)."""
+    beforehand not to be taken (the same answer, :func:`_finer_map_search`). ``designs``: the first planar call's
+    cache (:data:`FINER_DESIGN_REUSE`)."""
     u95_d = _u95_rms(d)
     if FINER_MAP_SHORTCUT and not np.isfinite(u95_d):
         return d  # (no finer discovery passes ``u95 <= ratio * nan``: the test below always returns d)
     t, extra = kept
     g0 = d.baseline.info["grid_step_mm"]
     try:
-        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra)
+        bl = bl_mod.planar(t, None, settings.grid_steps_mm, select_grid=False, yaw=yaw, extra=extra,
+                           designs=designs)
     except (IdentifiabilityError, ConfigError):
         return d
     if not bl.identifiable or bl.info["grid_step_mm"] >= g0:
@@ -4514,10 +4557,12 @@ def _selection_material(d, m: int, n: int, sigma: float, settings) -> bool:
 @functools.lru_cache(maxsize=None)
 def _chi2_max_mean(m: int, k: int) -> float:
     """The mean of the largest of ``m`` independent chi-square draws on ``k`` degrees of freedom,
-    ``integral over x > 0 of 1 - F_k(x)^m`` (``k`` for ``m = 1``)."""
+    ``integral over x > 0 of 1 - F_k(x)^m`` (``k`` for ``m = 1``). ``F_k`` is ``special.chdtr(k, x)``: what
+    ``stats.chi2.cdf(x, k)`` computes for ``x > 0`` (the only points quad asks for here), bit for bit, without its
+    argument handling (0.5 ms a call, ~500 calls an integral: 5 % of the discover tests' CPU; session 38, fast38)."""
     if m <= 1:
         return float(k)
-    return float(integrate.quad(lambda x: 1.0 - stats.chi2.cdf(x, k) ** m, 0.0, np.inf, limit=200)[0])
+    return float(integrate.quad(lambda x: 1.0 - special.chdtr(k, x) ** m, 0.0, np.inf, limit=200)[0])
 
 
 def _structure(diag, gap: CvGap, lof, st: _State, sigma: float, settings, kind: str = "", floor: float = 0.0) -> dict:
