@@ -1606,6 +1606,12 @@ def _report_tail(doc: dict, j: _Judged, *, identified_on: dict, nodes: dict, hea
     return cov_g
 
 
+#: :func:`run`'s progress marks (of 100, a run's CPU in percent): the touches simulated and their features fitted,
+#: then identified (``make bench`` splits its end-to-end time at them, scenarios/bench/mfb.py)
+PROGRESS_SIMULATED = 12
+PROGRESS_IDENTIFIED = 43
+
+
 def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None, mc_runs: int = 500,
         exact: bool = True, ripple: bool = False, drop: str | None = None, on_nodes: bool = False,
         u_cal_um: tuple = U_CAL_UM, bar_cal_error: bool = True,
@@ -1817,8 +1823,9 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
         else:
             T_true[p] = None
     # progress in percent of a run's CPU (cli38's timers, mfb-3axis, 12.9 s at load): preparing each
-    # measurement's program 0-3, simulating the touches and fitting the features to 12, the identification
-    # to 43, its residual tests, model-error share and U95 to 100 (a count per measurement read 17/19 at 13 %)
+    # measurement's program 0-3, simulating the touches and fitting the features to PROGRESS_SIMULATED, the
+    # identification to PROGRESS_IDENTIFIED, its residual tests, model-error share and U95 to 100 (a count per
+    # measurement read 17/19 at 13 %)
     steps = 100
     n_items = max(len(plan.measurements), 1)
     items = simulation_items(plan, art, probe, cfg_true, program, machines, T_true, compensate=compensate,
@@ -1864,10 +1871,10 @@ def run(name: str = "mfb-3axis", *, seed: int = 1, noise_um: float | None = None
     chain = cfg.chain
     rp = dict(cfg.rotary_points_R_m)
     if progress is not None:
-        progress(12, steps)
+        progress(PROGRESS_SIMULATED, steps)
     res_g = vol.identify_volumetric(meas, chain, plan.nodes, rp, exact=exact, extraction=extraction)
     if progress is not None:
-        progress(43, steps)
+        progress(PROGRESS_IDENTIFIED, steps)
     # the residual tests hold the bar's u only where the true bar is drawn from it (or given)
     u_cal_fit = u_cal if (bar_true_m is not None or (draw and bar_cal_error)) else np.zeros_like(u_cal)
     j = _judge(res_g, meas, cfg.chain, rp, sigma_m=probe.sigma_m, noisy=noisy, draw=draw, u_cal=u_cal,

@@ -185,9 +185,9 @@ def test_closed_loop_reports_progress(tmp_path, mfb_notes_skipped):
     assert all(b[0] >= a[0] for a, b in zip(seen, seen[1:]))            # never backwards
     # each run counts in percent of its CPU (session 38): the touches simulated and fitted at 12, identified at
     # 43 (a count per measurement read 17 of 19 at 13 % of the run)
-    runs = sum(1 for k, _ in seen if k % 100 == 12)
+    runs = sum(1 for k, _ in seen if k % 100 == S.PROGRESS_SIMULATED)
     assert runs >= 1 and total == {100 * runs}
-    assert {12, 43} <= {k % 100 for k, _ in seen}
+    assert {12, 43} == {S.PROGRESS_SIMULATED, S.PROGRESS_IDENTIFIED} <= {k % 100 for k, _ in seen}
 
 
 # --------------------------------------------------------------------------- 2. what a state was identified on
