@@ -66,7 +66,15 @@ def table_markdown(doc: dict) -> str:
         lines.append(f"| `{name}` | {value} | "
                      f"{'`' + r['reference'] + '`' if r.get('reference') else ''} | "
                      f"{_cell(r.get('reference_value'))} | {_cell(r.get('ratio'))} | {_cell(r.get('target'))} |")
-    if not rows:
+    # a benchmark that failed before writing any figure of the table would vanish from it without a word (session
+    # 38: a broken MFB row dropped its five rows): its error gets a row of its own
+    for e in errors:
+        if not any(r.get("bench") == e or name.startswith(e + "_") for name, r in rows.items()):
+            msg = " ".join(str(doc["figures"][e + "_error"].get("value")
+                               if isinstance(doc["figures"][e + "_error"], dict)
+                               else doc["figures"][e + "_error"]).split()).replace("|", "/")
+            lines.append(f"| `{e}_error` | failed: {msg[:160]} |  |  |  | every figure of `{e}` |")
+    if not rows and not errors:
         lines.append("| (no figure with a reference or target in this run) | | | | | |")
     return "\n".join(lines) + "\n"
 

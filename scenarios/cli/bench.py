@@ -85,4 +85,11 @@ def run(args) -> int:
     print(f"wrote {out}")
     if args.readme is not None:
         print(f"wrote {update_readme(args.readme, out)}")
+    failed = sorted(k[:-len("_error")] for k in doc["figures"] if k.endswith("_error"))
+    if failed:  # the figures and table are written (its rows say which failed); the run itself did not succeed
+        import sys
+
+        print(f"error: {len(failed)} benchmark(s) failed, their figures missing (see each `NAME_error` above): "
+              f"{', '.join(failed)}", file=sys.stderr)
+        return 1
     return 0

@@ -221,3 +221,22 @@ def test_vmt_bench_takes_the_time_left_from_its_out_file(monkeypatch, tmp_path):
     out.write_text("not json")
     assert main(["bench", "--json", str(out)]) == 0
     assert seen[-1] == (True, {}) and json.loads(out.read_text())["figures"]["a_s"]["value"] == 1.0
+
+
+def test_a_broken_benchmark_fails_the_run_and_keeps_its_row(monkeypatch, tmp_path, capsys):
+    """Session 38: `make bench` exited 0 with the MFB benchmark broken (KeyError) and README's table lost its five
+    MFB rows without a word. The run now exits 1 naming it, and the table says it failed."""
+    from scenarios.bench.table import BEGIN, END
+
+    _fake_benches(monkeypatch, ["a", "b"], broken=("b",))
+    readme = tmp_path / "README.md"
+    readme.write_text(f"x\n{BEGIN}\nold\n{END}\n")
+    out = tmp_path / "r.json"
+    assert main(["bench", "--json", str(out), "--readme", str(readme)]) == 1
+    err = capsys.readouterr().err
+    assert "1 benchmark(s) failed" in err and "fakebench_b" in err
+    table = readme.read_text()
+    assert "| `bench_fakebench_b_error` | failed: ZeroDivisionError: division by zero |" in table
+    _fake_benches(monkeypatch, ["a"])
+    assert main(["bench", "--json", str(out), "--readme", str(readme)]) == 0
+    assert "_error" not in readme.read_text()
