@@ -27,6 +27,11 @@ def _cell(v) -> str:
     return str(v).replace("|", "\\|").replace("\n", " ")
 
 
+def failed_benchmarks(figures: dict) -> list[str]:
+    """The benchmarks whose run broke: each wrote ``NAME_error`` (its exception) instead of its figures."""
+    return sorted(k[:-len("_error")] for k in figures if k.endswith("_error"))
+
+
 def table_markdown(doc: dict) -> str:
     """The Markdown table (with its measured-on line) of a bench document ``{"meta", "figures"}``."""
     from scenarios.bench import FORMAT
@@ -56,7 +61,7 @@ def table_markdown(doc: dict) -> str:
              "| --- | ---: | --- | ---: | ---: | --- |"]
     rows = {k: r for k, r in doc["figures"].items()
             if isinstance(r, dict) and ("reference" in r or "target" in r)}
-    errors = [k[:-len("_error")] for k in doc["figures"] if k.endswith("_error")]
+    errors = failed_benchmarks(doc["figures"])
     for name in sorted(rows, key=lambda k: (str(rows[k].get("bench")), k)):
         r = rows[name]
         value = _cell(r.get("value"))
@@ -70,9 +75,8 @@ def table_markdown(doc: dict) -> str:
     # 38: a broken MFB row dropped its five rows): its error gets a row of its own
     for e in errors:
         if not any(r.get("bench") == e or name.startswith(e + "_") for name, r in rows.items()):
-            msg = " ".join(str(doc["figures"][e + "_error"].get("value")
-                               if isinstance(doc["figures"][e + "_error"], dict)
-                               else doc["figures"][e + "_error"]).split()).replace("|", "/")
+            v = doc["figures"][e + "_error"]
+            msg = " ".join(str(v.get("value") if isinstance(v, dict) else v).split()).replace("|", "/")
             lines.append(f"| `{e}_error` | failed: {msg[:160]} |  |  |  | every figure of `{e}` |")
     if not rows and not errors:
         lines.append("| (no figure with a reference or target in this run) | | | | | |")

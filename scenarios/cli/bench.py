@@ -31,7 +31,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from scenarios.bench import BENCHES, _selects, expected_walls, merge_documents, run_all, short_name, write_figures
-    from scenarios.bench.table import read_results, update_readme
+    from scenarios.bench.table import failed_benchmarks, read_results, update_readme
 
     from core.exceptions import ConfigError
 
@@ -85,7 +85,7 @@ def run(args) -> int:
     print(f"wrote {out}")
     if args.readme is not None:
         print(f"wrote {update_readme(args.readme, out)}")
-    failed = sorted(k[:-len("_error")] for k in doc["figures"] if k.endswith("_error"))
+    failed = failed_benchmarks(doc["figures"])
     if failed:  # the figures and table are written (its rows say which failed); the run itself did not succeed
         import sys
 
